@@ -1,0 +1,14 @@
+// Subcommands of the `fuzzystereo` program. Each lives in its own cmd_*.cpp and registers itself
+// on the CLI11 app; its callback throws fs::UserError / fs::ConfigError for bad input, which main()
+// turns into one line on stderr and exit code 2.
+#pragma once
+#include <CLI/CLI.hpp>
+
+namespace fs::app {
+
+void add_match_command(CLI::App& app);  // cmd_match.cpp
+void add_fis_command(CLI::App& app);    // cmd_fis.cpp
+void add_eval_command(CLI::App& app);   // cmd_eval.cpp
+void add_bench_command(CLI::App& app);  // cmd_bench.cpp
+
+}  // namespace fs::app

@@ -1,0 +1,44 @@
+// Image I/O and conversions at the edge of the program (OpenCV lives here, not in the core).
+#pragma once
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "fuzzystereo/image.hpp"
+
+namespace fs {
+
+// Bad user input (missing/unreadable file, size mismatch ...). what() is one line for the user.
+class UserError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+namespace app {
+
+// Reads an image; throws UserError naming the file when it is missing or undecodable.
+cv::Mat read_image(const std::string& path, int flags);
+// Any 8-bit 1/3/4-channel Mat -> 8-bit grey core image.
+ImageU8 to_core_gray(const cv::Mat& m);
+cv::Mat to_mat(const ImageU8& img);
+// Q4 disparity (kInvalidDisp = no estimate) -> float disparity in px, invalid = -1.
+cv::Mat disp_q4_to_float(const ImageI16& disp);
+// KITTI 16-bit PNG: value = disparity * 256, 0 = invalid.
+void write_disp_kitti(const std::string& path, const cv::Mat& disp_float);
+// Colour-mapped preview (TURBO), invalid pixels black; max_disp scales the colours.
+cv::Mat colorize_disparity(const cv::Mat& disp_float, double max_disp);
+void write_image(const std::string& path, const cv::Mat& img);
+
+// NumPy .npy (format 1.0, little-endian, C order) — the dump format the host reads.
+void write_npy(const std::string& path, const std::int32_t* data, const std::vector<std::size_t>& shape);
+void write_npy(const std::string& path, const std::int16_t* data, const std::vector<std::size_t>& shape);
+void write_npy(const std::string& path, const std::uint8_t* data, const std::vector<std::size_t>& shape);
+void write_npy(const std::string& path, const std::uint32_t* data, const std::vector<std::size_t>& shape);
+// Reads an int32 .npy written by write_npy (labels for --labels-from). Throws UserError.
+ImageI32 read_npy_labels(const std::string& path);
+
+}  // namespace app
+}  // namespace fs

@@ -1,0 +1,261 @@
+// Config and FIS definition loading (toml++). Validation is driven by common/config/schema.toml,
+// the same file the host validates against, so every range is written once.
+#include "config.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+extern const char* const fs_embedded_fis_toml;
+extern const char* const fs_embedded_default_toml;
+extern const char* const fs_embedded_schema_toml;
+
+namespace fs {
+
+const char* embedded_default_config() { return fs_embedded_default_toml; }
+const char* embedded_fis_definition() { return fs_embedded_fis_toml; }
+const char* embedded_config_schema() { return fs_embedded_schema_toml; }
+
+namespace {
+
+std::string read_text_file(const std::string& path, const char* what) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ConfigError(std::string("cannot read ") + what + " '" + path + "': no such file or not readable");
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+toml::table parse_toml(const std::string& text, const std::string& source) {
+  try {
+    return toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream ss;
+    ss << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": TOML syntax error: "
+       << e.description();
+    throw ConfigError(ss.str());
+  }
+}
+
+struct FieldSpec {
+  std::string type;
+  bool has_min = false, has_max = false, odd = false;
+  double min = 0, max = 0;
+  std::string unit, doc;
+};
+
+const std::map<std::string, FieldSpec>& schema() {
+  static const std::map<std::string, FieldSpec> s = [] {
+    std::map<std::string, FieldSpec> m;
+    const toml::table t = parse_toml(fs_embedded_schema_toml, "schema.toml");
+    for (auto&& [sec, secnode] : t) {
+      for (auto&& [key, node] : *secnode.as_table()) {
+        const auto& f = *node.as_table();
+        FieldSpec spec;
+        spec.type = f["type"].value_or(std::string("int"));
+        if (auto v = f["min"].value<double>()) { spec.has_min = true; spec.min = *v; }
+        if (auto v = f["max"].value<double>()) { spec.has_max = true; spec.max = *v; }
+        spec.odd = f["odd"].value_or(false);
+        spec.unit = f["unit"].value_or(std::string());
+        spec.doc = f["doc"].value_or(std::string());
+        m[std::string(sec.str()) + "." + std::string(key.str())] = spec;
+      }
+    }
+    return m;
+  }();
+  return s;
+}
+
+std::string fmt_num(double v) {
+  std::ostringstream ss;
+  ss << v;
+  return ss.str();
+}
+
+std::string range_text(const FieldSpec& s) {
+  std::string r = s.type;
+  if (s.has_min || s.has_max) r += " in [" + fmt_num(s.min) + ", " + fmt_num(s.max) + "]";
+  if (s.odd) r += ", odd";
+  if (!s.unit.empty()) r += " " + s.unit;
+  return r;
+}
+
+// Validated values by dotted name.
+using Values = std::map<std::string, double>;
+
+void collect(const toml::table& t, const std::string& source, Values& out) {
+  const auto& sch = schema();
+  for (auto&& [sec, secnode] : t) {
+    const std::string secname(sec.str());
+    const toml::table* st = secnode.as_table();
+    if (!st) throw ConfigError(source + ": '" + secname + "' must be a table [" + secname + "]");
+    for (auto&& [key, node] : *st) {
+      const std::string name = secname + "." + std::string(key.str());
+      auto it = sch.find(name);
+      if (it == sch.end()) throw ConfigError(source + ": unknown field '" + name + "' (see common/config/schema.toml)");
+      const FieldSpec& s = it->second;
+      double v = 0;
+      if (s.type == "bool") {
+        if (!node.is_boolean()) throw ConfigError(source + ": field '" + name + "' must be true or false");
+        v = node.as_boolean()->get() ? 1 : 0;
+      } else if (s.type == "int") {
+        if (!node.is_integer()) throw ConfigError(source + ": field '" + name + "' must be an integer (" + range_text(s) + ")");
+        v = static_cast<double>(node.as_integer()->get());
+      } else {
+        if (node.is_integer()) v = static_cast<double>(node.as_integer()->get());
+        else if (node.is_floating_point()) v = node.as_floating_point()->get();
+        else throw ConfigError(source + ": field '" + name + "' must be a number (" + range_text(s) + ")");
+        if (!std::isfinite(v)) throw ConfigError(source + ": field '" + name + "' must be finite (" + range_text(s) + ")");
+      }
+      if ((s.has_min && v < s.min) || (s.has_max && v > s.max) ||
+          (s.odd && std::fmod(std::fabs(v), 2.0) != 1.0))
+        throw ConfigError(source + ": field '" + name + "' = " + fmt_num(v) + " is out of range: valid " + range_text(s) +
+                          " (" + s.doc + ")");
+      out[name] = v;
+    }
+  }
+}
+
+MatcherParams to_params(const Values& v) {
+  auto i = [&](const char* k) { return static_cast<int>(v.at(k)); };
+  MatcherParams p;
+  p.seg.region_size = i("segmentation.region_size");
+  p.seg.compactness = i("segmentation.compactness");
+  p.seg.iterations = i("segmentation.iterations");
+  p.seg.min_segment_pct = i("segmentation.min_segment_pct");
+  p.cost.max_disparity = i("cost.max_disparity");
+  p.cost.alpha = v.at("cost.alpha");
+  p.cost.nmi_bins = i("cost.nmi_bins");
+  p.cost.nmi_candidates = i("cost.nmi_candidates");
+  p.cost.inject_shift = i("testing.inject_shift");
+  p.fis.lut_size = i("fis.lut_size");
+  p.lr.max_diff = i("lr_check.max_diff");
+  p.esr.enabled = v.at("esr.enabled") != 0;
+  p.esr.window = i("esr.window");
+  p.esr.tau = v.at("esr.tau");
+  p.runtime.threads = i("runtime.threads");
+  return p;
+}
+
+}  // namespace
+
+MatcherParams parse_matcher_config(const std::string& toml_text, const std::string& source_name) {
+  Values v;
+  collect(parse_toml(fs_embedded_default_toml, "default.toml"), "default.toml", v);
+  for (const auto& [name, spec] : schema())
+    if (!v.count(name)) throw ConfigError("default.toml: field '" + name + "' is missing (build error)");
+  if (!toml_text.empty()) collect(parse_toml(toml_text, source_name), source_name, v);
+  return to_params(v);
+}
+
+MatcherParams load_matcher_config(const std::string& path) {
+  if (path.empty()) return parse_matcher_config("", "default.toml");
+  return parse_matcher_config(read_text_file(path, "config file"), path);
+}
+
+std::string config_to_toml(const MatcherParams& p) {
+  std::ostringstream s;
+  s << "[segmentation]\nregion_size = " << p.seg.region_size << "\ncompactness = " << p.seg.compactness
+    << "\niterations = " << p.seg.iterations << "\nmin_segment_pct = " << p.seg.min_segment_pct << "\n\n"
+    << "[cost]\nmax_disparity = " << p.cost.max_disparity << "\nalpha = " << fmt_num(p.cost.alpha)
+    << (p.cost.alpha == std::floor(p.cost.alpha) ? ".0" : "") << "\nnmi_bins = " << p.cost.nmi_bins
+    << "\nnmi_candidates = " << p.cost.nmi_candidates << "\n\n"
+    << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
+    << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
+    << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
+    << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"
+    << "[runtime]\nthreads = " << p.runtime.threads << "\n\n"
+    << "[testing]\ninject_shift = " << p.cost.inject_shift << "\n";
+  return s.str();
+}
+
+// ---- FIS definition -----------------------------------------------------------------------------
+
+namespace {
+
+FisVariable parse_variable(const toml::table& t, const std::string& name, const std::string& src) {
+  FisVariable v;
+  v.name = name;
+  const toml::array* terms = t["terms"].as_array();
+  if (!terms || terms->empty()) throw ConfigError(src + ": variable '" + name + "' has no 'terms' array");
+  std::set<std::string> seen;
+  for (auto&& n : *terms) {
+    const toml::table* tt = n.as_table();
+    if (!tt) throw ConfigError(src + ": variable '" + name + "': every term must be { name, mf, params }");
+    FisTerm term;
+    term.name = (*tt)["name"].value_or(std::string());
+    term.mf = (*tt)["mf"].value_or(std::string());
+    const std::string where = src + ": term '" + name + "." + term.name + "'";
+    if (term.name.empty()) throw ConfigError(src + ": variable '" + name + "' has a term without a name");
+    if (!seen.insert(term.name).second) throw ConfigError(where + " is defined twice");
+    if (term.mf != "trimf" && term.mf != "trapmf")
+      throw ConfigError(where + ": mf '" + term.mf + "' is not supported (valid: trimf, trapmf)");
+    const toml::array* pa = (*tt)["params"].as_array();
+    const std::size_t want = term.mf == "trimf" ? 3 : 4;
+    if (!pa || pa->size() != want)
+      throw ConfigError(where + ": params must be " + std::to_string(want) + " numbers for " + term.mf);
+    for (auto&& pn : *pa) {
+      auto x = pn.value<double>();
+      if (!x || *x < 0.0 || *x > 1.0) throw ConfigError(where + ": params must be numbers in [0, 1]");
+      term.params.push_back(*x);
+    }
+    for (std::size_t i = 1; i < term.params.size(); ++i)
+      if (term.params[i] < term.params[i - 1]) throw ConfigError(where + ": params must be non-decreasing");
+    v.terms.push_back(term);
+  }
+  return v;
+}
+
+int term_index(const FisVariable& v, const std::string& term, const std::string& src, std::int64_t rule) {
+  for (std::size_t i = 0; i < v.terms.size(); ++i)
+    if (v.terms[i].name == term) return static_cast<int>(i);
+  throw ConfigError(src + ": rule " + std::to_string(rule) + ": '" + term + "' is not a term of '" + v.name + "'");
+}
+
+}  // namespace
+
+FisDefinition parse_fis_definition(const std::string& text, const std::string& src) {
+  const toml::table t = parse_toml(text, src);
+  FisDefinition d;
+  d.name = t["name"].value_or(std::string("unnamed"));
+  d.input_points = static_cast<int>(t["universe"]["input_points"].value_or(std::int64_t(1001)));
+  d.output_points = static_cast<int>(t["universe"]["output_points"].value_or(std::int64_t(1401)));
+  if (d.input_points < 11 || d.input_points > 100001) throw ConfigError(src + ": universe.input_points must be in [11, 100001]");
+  if (d.output_points < 11 || d.output_points > 100001) throw ConfigError(src + ": universe.output_points must be in [11, 100001]");
+  const toml::table* in1 = t["inputs"]["dc1"].as_table();
+  const toml::table* in2 = t["inputs"]["dc2"].as_table();
+  const toml::table* out = t["output"].as_table();
+  if (!in1 || !in2 || !out) throw ConfigError(src + ": needs tables [inputs.dc1], [inputs.dc2] and [output]");
+  d.in1 = parse_variable(*in1, "dc1", src);
+  d.in2 = parse_variable(*in2, "dc2", src);
+  d.out = parse_variable(*out, (*out)["name"].value_or(std::string("score")), src);
+  const toml::array* rules = (*out)["rules"].as_array();
+  if (!rules) rules = t["rules"].as_array();
+  if (!rules || rules->empty()) throw ConfigError(src + ": no 'rules' array");
+  std::set<std::pair<int, int>> pairs;
+  for (auto&& rn : *rules) {
+    const toml::array* r = rn.as_array();
+    if (!r || r->size() != 4) throw ConfigError(src + ": every rule must be [number, dc1 term, dc2 term, output term]");
+    FisRule rule;
+    const std::int64_t num = (*r)[0].value_or(std::int64_t(0));
+    rule.number = static_cast<int>(num);
+    rule.in1 = term_index(d.in1, (*r)[1].value_or(std::string()), src, num);
+    rule.in2 = term_index(d.in2, (*r)[2].value_or(std::string()), src, num);
+    rule.out = term_index(d.out, (*r)[3].value_or(std::string()), src, num);
+    if (!pairs.insert({rule.in1, rule.in2}).second)
+      throw ConfigError(src + ": rule " + std::to_string(num) + " repeats the antecedent pair of an earlier rule");
+    d.rules.push_back(rule);
+  }
+  return d;
+}
+
+FisDefinition load_fis_definition(const std::string& path) {
+  if (path.empty()) return parse_fis_definition(fs_embedded_fis_toml, "fis.toml (built in)");
+  return parse_fis_definition(read_text_file(path, "FIS definition"), path);
+}
+
+}  // namespace fs

@@ -1,0 +1,62 @@
+// Mamdani fuzzy inference system of eq. (10)-(12) and Table I, and its 2-D lookup table.
+//
+// The definition (terms, membership functions, rules) is data, read from common/fis/fis.toml by
+// firmware/config; the core only sees this struct. At startup FisLut evaluates the Mamdani system
+// (min AND, min implication, max aggregation, centroid) in double precision at every table node;
+// per segment the decision is a bilinear table read in fixed point.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace fs {
+
+struct FisTerm {
+  std::string name;
+  std::string mf;             // "trimf" or "trapmf" (scikit-fuzzy semantics)
+  std::vector<double> params;
+};
+
+struct FisVariable {
+  std::string name;
+  std::vector<FisTerm> terms;
+};
+
+struct FisRule {
+  int number = 0;
+  int in1 = 0, in2 = 0, out = 0;  // term indices
+};
+
+struct FisDefinition {
+  std::string name;
+  int input_points = 1001;
+  int output_points = 1401;
+  FisVariable in1, in2, out;
+  std::vector<FisRule> rules;
+};
+
+// Membership degree of term at x (scikit-fuzzy trimf/trapmf semantics).
+double membership(const FisTerm& term, double x);
+
+// Reference Mamdani evaluation in double precision; inputs in [0, 1]. Output in [0, 1].
+// Antecedent memberships are interpolated on the input universe samples and the centroid is taken
+// over the output universe samples exactly as scikit-fuzzy does (piecewise-linear moment/area).
+double fis_evaluate(const FisDefinition& def, double x1, double x2);
+
+// Lookup table: size x size nodes over [0,1]^2, values in Q16 ([0, 1] -> 0 .. 65536).
+class FisLut {
+ public:
+  FisLut() = default;
+  FisLut(const FisDefinition& def, int size);
+
+  int size() const { return size_; }
+  // Inputs in Q16 [0, kQ16One]; output Q16. Bilinear between nodes.
+  std::uint32_t lookup(std::uint32_t a_q16, std::uint32_t b_q16) const;
+  const std::vector<std::uint32_t>& table() const { return table_; }
+
+ private:
+  int size_ = 0;
+  std::vector<std::uint32_t> table_;  // row-major [a][b]
+};
+
+}  // namespace fs

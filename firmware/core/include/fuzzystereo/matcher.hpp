@@ -1,0 +1,51 @@
+// Public entry point of the fuzzystereo disparity pipeline (Section III up to and including ESR).
+#pragma once
+#include <array>
+#include <string>
+
+#include "fuzzystereo/fis.hpp"
+#include "fuzzystereo/image.hpp"
+#include "fuzzystereo/params.hpp"
+#include "fuzzystereo/stages.hpp"
+
+namespace fs {
+
+// Stage names, in pipeline order, for timings and dumps.
+enum class Stage : int { Gradient, Segmentation, Cost, Wta, LrCheck, Esr, Count };
+const char* stage_name(Stage s);
+
+struct StageTimings {
+  std::array<double, static_cast<int>(Stage::Count)> ms{};
+  double total_ms() const;
+};
+
+struct MatchResult {
+  Segmentation seg_left, seg_right;
+  SegmentDecision dec_left, dec_right;
+  ImageI16 disp_left_wta, disp_right_wta;  // Q4, WTA per segment
+  ImageI16 disp_lr;                         // Q4, after eq. (13)
+  ImageU8 lr_mask;                          // 1 = consistent
+  ImageI16 disp_final;                      // Q4, after ESR (== disp_lr when ESR disabled)
+  ImageU8 esr_replaced;                     // 1 = replaced by eq. (15)
+  StageTimings timings;
+};
+
+class Matcher {
+ public:
+  Matcher(const MatcherParams& params, const FisDefinition& fis);
+
+  // left/right: rectified 8-bit grey images of equal size.
+  MatchResult match(const ImageU8& left, const ImageU8& right) const;
+  // Same, with segmentations given (reference comparison with the firmware's labels).
+  MatchResult match_with_labels(const ImageU8& left, const ImageU8& right, const ImageI32* labels_left,
+                                const ImageI32* labels_right) const;
+
+  const MatcherParams& params() const { return params_; }
+  const FisLut& lut() const { return lut_; }
+
+ private:
+  MatcherParams params_;
+  FisLut lut_;
+};
+
+}  // namespace fs

@@ -1,0 +1,50 @@
+// Matcher parameters. Defaults mirror common/config/default.toml; ranges live in
+// common/config/schema.toml and are checked once when the config is loaded (firmware/config).
+// Per-frame code assumes valid parameters.
+#pragma once
+
+namespace fs {
+
+struct SegmentationParams {
+  int region_size = 8;       // S [px]
+  int compactness = 20;      // m
+  int iterations = 4;
+  int min_segment_pct = 25;  // [% of S*S]
+};
+
+struct CostParams {
+  int max_disparity = 64;   // D [px]; disparities 0 .. D-1
+  double alpha = 0.5;       // eq. (9)
+  int nmi_bins = 16;        // eq. (2)-(4)
+  int nmi_candidates = 8;   // 0 = exhaustive
+  int inject_shift = 0;     // TEST ONLY: adds a bias to the right-image shift (fault injection)
+};
+
+struct FisParams {
+  int lut_size = 257;
+};
+
+struct LrParams {
+  int max_diff = 1;  // eq. (13) [px]
+};
+
+struct EsrParams {
+  bool enabled = true;
+  int window = 9;     // [px], odd
+  double tau = 0.5;   // [bit], eq. (15)
+};
+
+struct RuntimeParams {
+  int threads = 0;  // 0 = all cores
+};
+
+struct MatcherParams {
+  SegmentationParams seg;
+  CostParams cost;
+  FisParams fis;
+  LrParams lr;
+  EsrParams esr;
+  RuntimeParams runtime;
+};
+
+}  // namespace fs

@@ -1,0 +1,96 @@
+// The matcher's stages, in pipeline order. Each stage is a free function with explicit inputs and
+// outputs, implemented in one folder of firmware/core/src/ and tested against a plain scalar
+// reference in tests/cpp/. matcher.cpp chains them, one line per stage.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "fuzzystereo/fis.hpp"
+#include "fuzzystereo/image.hpp"
+#include "fuzzystereo/params.hpp"
+
+namespace fs {
+
+// ---- image/ ---------------------------------------------------------------------------------
+// eq. (5): gradient magnitude sqrt(gx^2 + gy^2) of 3x3 Sobel derivatives, border replicated,
+// rounded to the nearest integer (uint16, <= 1443).
+ImageU16 gradient_magnitude(const ImageU8& img);
+
+// ---- segmentation/ --------------------------------------------------------------------------
+// Horizontal run of one segment in one row: pixels [x0, x1) of row y.
+struct Run {
+  std::int32_t y, x0, x1;
+};
+
+// A segmentation as labels plus, per segment, its runs (row-major order) — the variable-size
+// matching windows of Section III.
+struct Segmentation {
+  ImageI32 labels;                           // 0 .. count-1
+  int count = 0;
+  std::vector<std::int32_t> run_begin;       // runs of segment s: runs[run_begin[s] .. run_begin[s+1])
+  std::vector<Run> runs;
+  std::vector<std::int32_t> pixels;          // pixel count per segment
+};
+
+// Integer SLIC on intensity + position (grid step S, compactness m), then connectivity enforcement.
+Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p);
+// Build runs/pixel counts from a label image (labels must be dense 0..count-1).
+Segmentation segmentation_from_labels(ImageI32 labels);
+
+// ---- cost/ ----------------------------------------------------------------------------------
+// Per segment and disparity: the two FIS inputs in Q16. Layout [segment * D + d].
+//   dc1 = max(0, NCC) (eq. 1, 8); dc2 = alpha*NMI + (1-alpha)*IGSAD (eq. 2-7, 9).
+// nmi_valid[s*D+d] = 1 where NMI was evaluated (candidates), 0 where it was skipped.
+struct SegmentCosts {
+  int segments = 0;
+  int disparities = 0;
+  std::vector<std::uint32_t> ncc;     // Q16, clamped to [0, 1]
+  std::vector<std::uint32_t> igsad;   // Q16
+  std::vector<std::uint32_t> nmi;     // Q16 (0 where not evaluated)
+  std::vector<std::uint8_t> nmi_valid;
+};
+
+// direction = +1: reference is the left image, its pixel x matches x - d in the other image.
+// direction = -1: reference is the right image, its pixel x matches x + d in the other image.
+// fis is used only to rank candidates for NMI (when nmi_candidates > 0).
+SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, const ImageU16& ref_grad,
+                                   const ImageU16& other_grad, const Segmentation& seg, int direction,
+                                   const CostParams& p, const FisLut& fis, int threads);
+
+// ---- fis/ + wta/ ----------------------------------------------------------------------------
+struct SegmentDecision {
+  std::vector<std::int16_t> disparity;  // per segment, integer px (kInvalidDisp if no candidate)
+  std::vector<std::uint32_t> score;     // FIS output of the winner, Q16
+  std::vector<std::uint32_t> dc1;       // winner's inputs, Q16
+  std::vector<std::uint32_t> dc2;
+};
+
+// Data Cost 2 of eq. (9) in Q16 from NMI and IGSAD in Q16.
+std::uint32_t data_cost2_q16(std::uint32_t nmi_q16, std::uint32_t igsad_q16, std::uint32_t alpha_q16);
+
+// Winner-take-all over the FIS score (Section III): per segment, argmax_d FIS(dc1, dc2).
+SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis, const CostParams& p);
+
+// Paint per-segment disparities into a Q4 disparity map.
+ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp);
+
+// ---- lrcheck/ -------------------------------------------------------------------------------
+// eq. (13): keeps d_l(x,y) where |d_l(x,y) - d_r(x - d_l(x,y), y)| <= max_diff, else kInvalidDisp.
+// mask (optional) receives 1 for consistent pixels, 0 otherwise.
+ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right, const LrParams& p,
+                          ImageU8* mask);
+
+// ---- esr/ -----------------------------------------------------------------------------------
+// eq. (14): Shannon entropy [bit] of the integer disparities in a w x w block around every pixel
+// (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity);
+// Mean disparity (Q4) of the valid pixels of a w x w block around every pixel (integral image).
+ImageI16 block_mean(const ImageI16& disp, int window);
+// eq. (15): replace d with the mean of the lower-entropy block when |E_l - E_r| > tau.
+// The right block is taken at the corresponding position x - d_l(x, y).
+// replaced (optional) receives 1 where a pixel was replaced.
+// disp_lr: left map after eq. (13); disp_right: right-reference WTA map.
+ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
+                                      int max_disparity, ImageU8* replaced);
+
+}  // namespace fs

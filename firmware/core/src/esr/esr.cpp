@@ -1,0 +1,102 @@
+// Entropy-based selective refinement (ESR), Section III-A, eq. (14)-(15).
+//
+// Block entropy, eq. (14): histogram of the integer disparities of the valid pixels in the w x w
+// block (clipped at the image border), H = log2(n) - (1/n) sum_c c log2 c [bit, Q16].
+// Sliding window: the block histogram moves along the row; each pixel entering or leaving changes
+// one bin c -> c +- 1 and the running sum by T[c +- 1] - T[c] (n*log2 n table), so a pixel costs
+// O(1) and an output pixel O(w) (one column in, one column out) instead of O(w^2) plus a pass over
+// all D bins for a recomputation.
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
+
+namespace fs {
+
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
+  const int w = disp.width, h = disp.height, r = window / 2;
+  const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
+  ImageI32 out(w, h, 0);
+  std::vector<std::uint32_t> hist(std::size_t(max_disparity) + 1);
+  for (int y = 0; y < h; ++y) {
+    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
+    std::fill(hist.begin(), hist.end(), 0);
+    std::uint64_t n = 0, sum_t = 0;
+    auto add_col = [&](int x, int sign) {
+      for (int yy = y0; yy <= y1; ++yy) {
+        const std::int16_t d = disp.at(x, yy);
+        if (d == kInvalidDisp) continue;
+        const int b = std::min(d >> kDispShift, max_disparity);
+        std::uint32_t& c = hist[std::size_t(b)];
+        if (sign > 0) { sum_t += T[c + 1] - T[c]; ++c; ++n; }
+        else          { sum_t -= T[c] - T[c - 1]; --c; --n; }
+      }
+    };
+    for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);
+    for (int x = 0; x < w; ++x) {
+      if (x + r < w) add_col(x + r, +1);
+      if (x - r - 1 >= 0) add_col(x - r - 1, -1);
+      out.at(x, y) = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+    }
+  }
+  return out;
+}
+
+// Mean of the valid disparities (Q4) in the clipped w x w block, rounded to nearest; kInvalidDisp
+// when the block has no valid pixel. Integral images of sum and count (int64).
+ImageI16 block_mean(const ImageI16& disp, int window) {
+  const int w = disp.width, h = disp.height, r = window / 2;
+  std::vector<std::int64_t> S(std::size_t(w + 1) * std::size_t(h + 1), 0), N(S.size(), 0);
+  auto at = [&](std::vector<std::int64_t>& a, int x, int y) -> std::int64_t& { return a[std::size_t(y) * std::size_t(w + 1) + std::size_t(x)]; };
+  for (int y = 0; y < h; ++y) {
+    std::int64_t rs = 0, rn = 0;
+    for (int x = 0; x < w; ++x) {
+      const std::int16_t d = disp.at(x, y);
+      if (d != kInvalidDisp) { rs += d; ++rn; }
+      at(S, x + 1, y + 1) = at(S, x + 1, y) + rs;
+      at(N, x + 1, y + 1) = at(N, x + 1, y) + rn;
+    }
+  }
+  ImageI16 out(w, h, kInvalidDisp);
+  for (int y = 0; y < h; ++y) {
+    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r) + 1;
+    for (int x = 0; x < w; ++x) {
+      const int x0 = std::max(0, x - r), x1 = std::min(w - 1, x + r) + 1;
+      const std::int64_t s = at(S, x1, y1) - at(S, x0, y1) - at(S, x1, y0) + at(S, x0, y0);
+      const std::int64_t n = at(N, x1, y1) - at(N, x0, y1) - at(N, x1, y0) + at(N, x0, y0);
+      if (n > 0) out.at(x, y) = static_cast<std::int16_t>((2 * s + n) / (2 * n));
+    }
+  }
+  return out;
+}
+
+ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
+                                      int max_disparity, ImageU8* replaced) {
+  const int w = disp_lr.width, h = disp_lr.height;
+  const ImageI32 El = block_entropy(disp_lr, p.window, max_disparity);
+  const ImageI32 Er = block_entropy(disp_right, p.window, max_disparity);
+  const ImageI16 Ml = block_mean(disp_lr, p.window);
+  const ImageI16 Mr = block_mean(disp_right, p.window);
+  const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
+  ImageI16 out = disp_lr;
+  if (replaced) *replaced = ImageU8(w, h, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const std::int16_t d = disp_lr.at(x, y);
+      if (d == kInvalidDisp) continue;
+      const int xr = x - (d >> kDispShift);
+      if (xr < 0 || xr >= w) continue;
+      const std::int64_t el = El.at(x, y), er = Er.at(xr, y);
+      if (std::llabs(el - er) <= tau) continue;  // eq. (15), "otherwise"
+      const std::int16_t m = el < er ? Ml.at(x, y) : Mr.at(xr, y);
+      if (m == kInvalidDisp) continue;
+      out.at(x, y) = m;
+      if (replaced) replaced->at(x, y) = 1;
+    }
+  }
+  return out;
+}
+
+}  // namespace fs

@@ -1,0 +1,203 @@
+// Mamdani FIS of eq. (10)-(12) / Table I and its lookup table.
+//
+// fis_evaluate() reproduces scikit-fuzzy's control-API evaluation step by step so that the host's
+// oracle and the firmware agree to rounding: antecedent degrees by linear interpolation of the term
+// sampled on the input universe; rule strength = min; per output term strength = max over rules;
+// implication = min (clipping); the output universe is upsampled with the points where each
+// clipped term crosses its cut level; aggregation = max; centroid of the piecewise-linear result.
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "fuzzystereo/fis.hpp"
+#include "fuzzystereo/image.hpp"
+#include "internal.hpp"
+
+namespace fs {
+
+double membership(const FisTerm& t, double x) {
+  const auto& p = t.params;
+  if (t.mf == "trimf") {
+    const double a = p[0], b = p[1], c = p[2];
+    if (x == b) return 1.0;
+    if (a < x && x < b) return (x - a) / (b - a);
+    if (b < x && x < c) return (c - x) / (c - b);
+    return 0.0;
+  }
+  // trapmf [a, b, c, d]
+  const double a = p[0], b = p[1], c = p[2], d = p[3];
+  if (b <= x && x <= c) return 1.0;
+  if (a < x && x < b) return (x - a) / (b - a);
+  if (c < x && x < d) return (d - x) / (d - c);
+  return 0.0;
+}
+
+namespace {
+
+std::vector<double> linspace01(int n) {
+  std::vector<double> u(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) u[std::size_t(i)] = n > 1 ? static_cast<double>(i) / (n - 1) : 0.0;
+  return u;
+}
+
+// np.interp(x, xp, fp) on a uniform grid over [0, 1].
+double interp_uniform(const std::vector<double>& fp, double x) {
+  const int n = static_cast<int>(fp.size());
+  if (x <= 0.0) return fp.front();
+  if (x >= 1.0) return fp.back();
+  const double pos = x * (n - 1);
+  int i = static_cast<int>(pos);
+  if (i >= n - 1) i = n - 2;
+  const double x0 = static_cast<double>(i) / (n - 1), x1 = static_cast<double>(i + 1) / (n - 1);
+  return fp[std::size_t(i)] + (x - x0) * (fp[std::size_t(i) + 1] - fp[std::size_t(i)]) / (x1 - x0);
+}
+
+// scikit-fuzzy defuzz 'centroid': moment/area of the piecewise-linear function through (x, y).
+double centroid(const std::vector<double>& x, const std::vector<double>& y) {
+  double sum_moment_area = 0.0, sum_area = 0.0;
+  for (std::size_t i = 1; i < x.size(); ++i) {
+    const double x1 = x[i - 1], x2 = x[i], y1 = y[i - 1], y2 = y[i];
+    if ((y1 == 0.0 && y2 == 0.0) || x1 == x2) continue;
+    double moment, area;
+    if (y1 == y2) {
+      moment = 0.5 * (x1 + x2);
+      area = (x2 - x1) * y1;
+    } else if (y1 == 0.0) {
+      moment = 2.0 / 3.0 * (x2 - x1) + x1;
+      area = 0.5 * (x2 - x1) * y2;
+    } else if (y2 == 0.0) {
+      moment = 1.0 / 3.0 * (x2 - x1) + x1;
+      area = 0.5 * (x2 - x1) * y1;
+    } else {
+      moment = (2.0 / 3.0 * (x2 - x1) * (y2 + 0.5 * y1)) / (y1 + y2) + x1;
+      area = 0.5 * (x2 - x1) * (y1 + y2);
+    }
+    sum_moment_area += moment * area;
+    sum_area += area;
+  }
+  return sum_moment_area / std::max(sum_area, 2.220446049250313e-16);
+}
+
+// Everything fis_evaluate needs, sampled once.
+struct SampledFis {
+  std::vector<std::vector<double>> in1, in2, out;  // term samples on the universes
+  std::vector<double> out_u;
+};
+
+SampledFis sample(const FisDefinition& def) {
+  SampledFis s;
+  const auto ui = linspace01(def.input_points);
+  s.out_u = linspace01(def.output_points);
+  auto sample_terms = [](const FisVariable& v, const std::vector<double>& u) {
+    std::vector<std::vector<double>> r;
+    for (const auto& t : v.terms) {
+      std::vector<double> m(u.size());
+      for (std::size_t i = 0; i < u.size(); ++i) m[i] = membership(t, u[i]);
+      r.push_back(std::move(m));
+    }
+    return r;
+  };
+  s.in1 = sample_terms(def.in1, ui);
+  s.in2 = sample_terms(def.in2, ui);
+  s.out = sample_terms(def.out, s.out_u);
+  return s;
+}
+
+double evaluate_sampled(const FisDefinition& def, const SampledFis& s, double x1, double x2,
+                        std::vector<double>& xs, std::vector<double>& ys) {
+  // Rule strengths (min) aggregated per output term (max).
+  std::vector<double> cut(def.out.terms.size(), -1.0);  // -1: term used by no rule
+  std::vector<double> mu1(s.in1.size()), mu2(s.in2.size());
+  for (std::size_t i = 0; i < s.in1.size(); ++i) mu1[i] = interp_uniform(s.in1[i], x1);
+  for (std::size_t i = 0; i < s.in2.size(); ++i) mu2[i] = interp_uniform(s.in2[i], x2);
+  for (const auto& r : def.rules) {
+    const double a = std::min(mu1[std::size_t(r.in1)], mu2[std::size_t(r.in2)]);
+    double& c = cut[std::size_t(r.out)];
+    c = std::max(c, a);
+  }
+  // Support of the active terms bounds the part of the universe that can be non-zero.
+  const auto& u = s.out_u;
+  const int n = static_cast<int>(u.size());
+  int lo = n, hi = -1;
+  for (std::size_t t = 0; t < cut.size(); ++t) {
+    if (cut[t] <= 0.0) continue;
+    const auto& m = s.out[t];
+    int a = 0;
+    while (a < n && m[std::size_t(a)] == 0.0) ++a;
+    int b = n - 1;
+    while (b >= 0 && m[std::size_t(b)] == 0.0) --b;
+    lo = std::min(lo, std::max(0, a - 1));
+    hi = std::max(hi, std::min(n - 1, b + 1));
+  }
+  if (hi < lo) throw std::runtime_error("FIS: no rule fires; the output is undefined");
+  // Upsampled universe: samples plus the cut-level crossings of every active term.
+  xs.assign(u.begin() + lo, u.begin() + hi + 1);
+  for (std::size_t t = 0; t < cut.size(); ++t) {
+    if (cut[t] <= 0.0) continue;
+    const auto& m = s.out[t];
+    for (int i = lo; i < hi; ++i) {
+      const double d0 = m[std::size_t(i)] - cut[t], d1 = m[std::size_t(i) + 1] - cut[t];
+      if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0))
+        xs.push_back(u[std::size_t(i)] + (cut[t] - m[std::size_t(i)]) * (u[std::size_t(i) + 1] - u[std::size_t(i)]) /
+                                              (m[std::size_t(i) + 1] - m[std::size_t(i)]));
+    }
+  }
+  std::sort(xs.begin(), xs.end());
+  xs.erase(std::unique(xs.begin(), xs.end()), xs.end());
+  ys.assign(xs.size(), 0.0);
+  for (std::size_t t = 0; t < cut.size(); ++t) {
+    if (cut[t] <= 0.0) continue;
+    for (std::size_t i = 0; i < xs.size(); ++i)
+      ys[i] = std::max(ys[i], std::min(cut[t], interp_uniform(s.out[t], xs[i])));
+  }
+  return centroid(xs, ys);
+}
+
+}  // namespace
+
+double fis_evaluate(const FisDefinition& def, double x1, double x2) {
+  const SampledFis s = sample(def);
+  std::vector<double> xs, ys;
+  return evaluate_sampled(def, s, x1, x2, xs, ys);
+}
+
+FisLut::FisLut(const FisDefinition& def, int size) : size_(size), table_(std::size_t(size) * std::size_t(size)) {
+  const SampledFis s = sample(def);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel
+#endif
+  {
+    std::vector<double> xs, ys;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(dynamic, 4)
+#endif
+    for (int i = 0; i < size; ++i) {
+      for (int j = 0; j < size; ++j) {
+        const double v = evaluate_sampled(def, s, static_cast<double>(i) / (size - 1),
+                                          static_cast<double>(j) / (size - 1), xs, ys);
+        table_[std::size_t(i) * std::size_t(size) + std::size_t(j)] =
+            static_cast<std::uint32_t>(std::llround(std::clamp(v, 0.0, 1.0) * kQ16One));
+      }
+    }
+  }
+}
+
+// Bilinear read. Node (i, j) sits at (i/(N-1), j/(N-1)). Position a*(N-1) is Q16; the fractional
+// parts weight the four nodes in Q16, the 64-bit sum is rounded back to Q16.
+std::uint32_t FisLut::lookup(std::uint32_t a_q16, std::uint32_t b_q16) const {
+  const std::uint64_t n1 = static_cast<std::uint64_t>(size_ - 1);
+  const std::uint64_t pa = std::min<std::uint64_t>(a_q16, kQ16One) * n1;
+  const std::uint64_t pb = std::min<std::uint64_t>(b_q16, kQ16One) * n1;
+  std::uint64_t ia = pa >> kQ16Shift, ib = pb >> kQ16Shift;
+  std::uint64_t fa = pa & 0xFFFF, fb = pb & 0xFFFF;
+  if (ia >= n1) { ia = n1 - 1; fa = kQ16One; }
+  if (ib >= n1) { ib = n1 - 1; fb = kQ16One; }
+  const std::uint32_t* r0 = table_.data() + ia * std::uint64_t(size_);
+  const std::uint32_t* r1 = r0 + size_;
+  const std::uint64_t t00 = r0[ib], t01 = r0[ib + 1], t10 = r1[ib], t11 = r1[ib + 1];
+  const std::uint64_t wa1 = fa, wa0 = kQ16One - fa, wb1 = fb, wb0 = kQ16One - fb;
+  const std::uint64_t acc = (t00 * wb0 + t01 * wb1) * wa0 + (t10 * wb0 + t11 * wb1) * wa1;  // Q48
+  return static_cast<std::uint32_t>((acc + (std::uint64_t(1) << 31)) >> 32);
+}
+
+}  // namespace fs

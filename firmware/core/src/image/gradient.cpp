@@ -1,0 +1,33 @@
+// eq. (5): gradient magnitude of the image, used by the gradient SAD of eq. (6)-(7).
+#include <cmath>
+#include <cstdlib>
+
+#include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
+
+namespace fs {
+
+// 3x3 Sobel gx, gy with replicated border; |grad| = sqrt(gx^2 + gy^2) rounded to nearest
+// (exact integer rounding: r = floor(sqrt(v)), +1 when v - r^2 > r). Range 0 .. 1443 (uint16).
+ImageU16 gradient_magnitude(const ImageU8& img) {
+  const int w = img.width, h = img.height;
+  ImageU16 out(w, h);
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* up = img.row(y > 0 ? y - 1 : 0);
+    const std::uint8_t* mid = img.row(y);
+    const std::uint8_t* dn = img.row(y < h - 1 ? y + 1 : h - 1);
+    std::uint16_t* o = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int xl = x > 0 ? x - 1 : 0, xr = x < w - 1 ? x + 1 : w - 1;
+      const int gx = (up[xr] - up[xl]) + 2 * (mid[xr] - mid[xl]) + (dn[xr] - dn[xl]);
+      const int gy = (dn[xl] - up[xl]) + 2 * (dn[x] - up[x]) + (dn[xr] - up[xr]);
+      const auto v = static_cast<std::uint64_t>(gx * gx + gy * gy);
+      std::uint64_t r = detail::isqrt64(v);
+      if (v - r * r > r) ++r;
+      o[x] = static_cast<std::uint16_t>(r);
+    }
+  }
+  return out;
+}
+
+}  // namespace fs

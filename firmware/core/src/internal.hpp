@@ -1,0 +1,57 @@
+// Internal helpers of the core: integer math, fixed-point tables, threading.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#if defined(FS_HAVE_OPENMP)
+#include <omp.h>
+#endif
+
+// Function multi-versioning for the hot cost loop: on x86-64 gcc emits an AVX2 clone and a baseline
+// clone and picks one at load time; on aarch64 NEON is baseline, so plain code is vectorised as is.
+// This is the only platform switch in the core.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+#define FS_TARGET_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define FS_TARGET_CLONES
+#endif
+
+namespace fs::detail {
+
+inline int resolve_threads(int requested) {
+#if defined(FS_HAVE_OPENMP)
+  return requested > 0 ? requested : omp_get_max_threads();
+#else
+  (void)requested;
+  return 1;
+#endif
+}
+
+// floor(sqrt(v)) for v < 2^62, exact.
+inline std::uint64_t isqrt64(std::uint64_t v) {
+  auto r = static_cast<std::uint64_t>(std::sqrt(static_cast<double>(v)));
+  while (r * r > v) --r;
+  while ((r + 1) * (r + 1) <= v) ++r;
+  return r;
+}
+
+// T[c] = c * log2(c) in Q16 (T[0] = T[1] = 0): the n*log n table that makes histogram entropies
+// incremental. H = log2(n) - (1/n) sum c log2 c = (T[n] - sum T[c]) / n   [bits, Q16].
+// Values are rounded once when the table is built, so every user sees identical integers.
+inline std::vector<std::uint64_t> nlogn_table_q16(std::size_t max_count) {
+  std::vector<std::uint64_t> t(max_count + 1, 0);
+  for (std::size_t c = 2; c <= max_count; ++c)
+    t[c] = static_cast<std::uint64_t>(std::llround(static_cast<double>(c) * std::log2(static_cast<double>(c)) * 65536.0));
+  return t;
+}
+
+// Entropy [bit, Q16] of a histogram with n samples and sum_t = sum_c T[c].
+inline std::uint32_t entropy_q16(const std::vector<std::uint64_t>& t, std::uint64_t n, std::uint64_t sum_t) {
+  if (n == 0) return 0;
+  const std::uint64_t tn = t[n];
+  return tn > sum_t ? static_cast<std::uint32_t>((tn - sum_t + n / 2) / n) : 0u;
+}
+
+}  // namespace fs::detail

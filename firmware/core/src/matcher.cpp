@@ -1,0 +1,97 @@
+// The disparity pipeline of Section III, one line per stage (see stages.hpp for each stage).
+#include "fuzzystereo/matcher.hpp"
+
+#include <chrono>
+#include <stdexcept>
+
+#include "internal.hpp"
+
+namespace fs {
+
+const char* stage_name(Stage s) {
+  switch (s) {
+    case Stage::Gradient: return "gradient";
+    case Stage::Segmentation: return "segmentation";
+    case Stage::Cost: return "cost";
+    case Stage::Wta: return "wta";
+    case Stage::LrCheck: return "lrcheck";
+    case Stage::Esr: return "esr";
+    default: return "?";
+  }
+}
+
+double StageTimings::total_ms() const {
+  double t = 0;
+  for (double v : ms) t += v;
+  return t;
+}
+
+Matcher::Matcher(const MatcherParams& params, const FisDefinition& fis)
+    : params_(params), lut_(fis, params.fis.lut_size) {}
+
+MatchResult Matcher::match(const ImageU8& left, const ImageU8& right) const {
+  return match_with_labels(left, right, nullptr, nullptr);
+}
+
+namespace {
+
+class StageClock {
+ public:
+  explicit StageClock(StageTimings& t) : t_(t), last_(std::chrono::steady_clock::now()) {}
+  void lap(Stage s) {
+    const auto now = std::chrono::steady_clock::now();
+    t_.ms[static_cast<std::size_t>(s)] += std::chrono::duration<double, std::milli>(now - last_).count();
+    last_ = now;
+  }
+
+ private:
+  StageTimings& t_;
+  std::chrono::steady_clock::time_point last_;
+};
+
+}  // namespace
+
+MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right, const ImageI32* labels_left,
+                                       const ImageI32* labels_right) const {
+  if (left.width != right.width || left.height != right.height || left.empty())
+    throw std::invalid_argument("Matcher: left and right images must be non-empty and of equal size");
+  const MatcherParams& p = params_;
+  const int threads = p.runtime.threads;
+  MatchResult r;
+  StageClock clock(r.timings);
+
+  const ImageU16 grad_l = gradient_magnitude(left);                                     // eq. (5)
+  const ImageU16 grad_r = gradient_magnitude(right);
+  clock.lap(Stage::Gradient);
+
+  r.seg_left = labels_left ? segmentation_from_labels(*labels_left) : slic_segment(left, p.seg);
+  r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg);
+  clock.lap(Stage::Segmentation);
+
+  const SegmentCosts cost_l =                                                           // eq. (1)-(9)
+      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, lut_, threads);
+  const SegmentCosts cost_r =
+      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, lut_, threads);
+  clock.lap(Stage::Cost);
+
+  r.dec_left = fis_winner_take_all(cost_l, lut_, p.cost);                              // eq. (10)-(12), WTA
+  r.dec_right = fis_winner_take_all(cost_r, lut_, p.cost);
+  r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity);
+  r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity);
+  clock.lap(Stage::Wta);
+
+  r.disp_lr = left_right_check(r.disp_left_wta, r.disp_right_wta, p.lr, &r.lr_mask);  // eq. (13)
+  clock.lap(Stage::LrCheck);
+
+  if (p.esr.enabled) {                                                                  // eq. (14)-(15)
+    r.disp_final = entropy_selective_refinement(r.disp_lr, r.disp_right_wta, p.esr, p.cost.max_disparity,
+                                                &r.esr_replaced);
+  } else {
+    r.disp_final = r.disp_lr;
+    r.esr_replaced = ImageU8(left.width, left.height, 0);
+  }
+  clock.lap(Stage::Esr);
+  return r;
+}
+
+}  // namespace fs

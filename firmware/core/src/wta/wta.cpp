@@ -1,0 +1,58 @@
+// Section III: disparity selection. The FIS (eq. 10-12, Table I) turns the two data costs into one
+// matching quality; winner-take-all keeps the best disparity per segment.
+#include <algorithm>
+#include <cmath>
+
+#include "fuzzystereo/stages.hpp"
+
+namespace fs {
+
+// eq. (9): alpha*NMI + (1-alpha)*IGSAD, all Q16, rounded to nearest.
+std::uint32_t data_cost2_q16(std::uint32_t nmi_q16, std::uint32_t igsad_q16, std::uint32_t alpha_q16) {
+  const std::uint64_t v = std::uint64_t(alpha_q16) * nmi_q16 + std::uint64_t(kQ16One - alpha_q16) * igsad_q16;
+  return static_cast<std::uint32_t>((v + (1u << 15)) >> kQ16Shift);
+}
+
+SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis, const CostParams& p) {
+  const int D = costs.disparities;
+  const auto alpha_q16 = static_cast<std::uint32_t>(std::llround(p.alpha * kQ16One));
+  SegmentDecision dec;
+  const std::size_t n = std::size_t(costs.segments);
+  dec.disparity.assign(n, kInvalidDisp);
+  dec.score.assign(n, 0);
+  dec.dc1.assign(n, 0);
+  dec.dc2.assign(n, 0);
+  for (std::size_t s = 0; s < n; ++s) {
+    const std::size_t off = s * std::size_t(D);
+    std::int64_t best = -1;
+    for (int d = 0; d < D; ++d) {
+      const std::size_t i = off + std::size_t(d);
+      if (!costs.nmi_valid[i]) continue;  // not a candidate
+      const std::uint32_t dc2 = data_cost2_q16(costs.nmi[i], costs.igsad[i], alpha_q16);
+      const std::uint32_t score = fis.lookup(costs.ncc[i], dc2);
+      if (std::int64_t(score) > best) {  // strict: ties keep the smaller d
+        best = score;
+        dec.disparity[s] = static_cast<std::int16_t>(d);
+        dec.score[s] = score;
+        dec.dc1[s] = costs.ncc[i];
+        dec.dc2[s] = dc2;
+      }
+    }
+  }
+  return dec;
+}
+
+ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp) {
+  ImageI16 out(seg.labels.width, seg.labels.height, kInvalidDisp);
+  for (int s = 0; s < seg.count; ++s) {
+    const std::int16_t d = seg_disp[std::size_t(s)];
+    const std::int16_t v = d < 0 ? kInvalidDisp : static_cast<std::int16_t>(d * kDispScale);
+    for (std::int32_t r = seg.run_begin[std::size_t(s)]; r < seg.run_begin[std::size_t(s) + 1]; ++r) {
+      const Run& run = seg.runs[std::size_t(r)];
+      std::fill(out.row(run.y) + run.x0, out.row(run.y) + run.x1, v);
+    }
+  }
+  return out;
+}
+
+}  // namespace fs
