@@ -163,6 +163,11 @@ void run_bench(const BenchOptions& o) {
   const MatcherParams params = load_matcher_config(o.config);
   const FisDefinition fis = load_fis_definition("");
   const BenchInput in = choose_input(o);
+  std::ofstream json_out;  // opened now so a bad path fails before the run, not after it
+  if (!o.json.empty()) {
+    json_out.open(o.json);
+    if (!json_out) throw UserError("cannot write JSON file '" + o.json + "'");
+  }
 
   const int all = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   std::vector<int> thread_counts{1};
@@ -193,7 +198,7 @@ void run_bench(const BenchOptions& o) {
   row("ratio fuzzystereo/sgbm", [](const RunFigures& r) { return r.fuzzy_ms / r.sgbm_ms; }, " %11.2fx");
   row("ratio fuzzystereo/bm", [](const RunFigures& r) { return r.fuzzy_ms / r.bm_ms; }, " %11.2fx");
 
-  if (!o.json.empty()) {
+  if (json_out.is_open()) {
     nlohmann::ordered_json j;
     j["frame"] = in.label;
     j["width"] = in.left_gray.cols;
@@ -212,10 +217,8 @@ void run_bench(const BenchOptions& o) {
                            {"ratio_fuzzystereo_sgbm", r.fuzzy_ms / r.sgbm_ms},
                            {"ratio_fuzzystereo_bm", r.fuzzy_ms / r.bm_ms}});
     }
-    std::ofstream js(o.json);
-    if (!js) throw UserError("cannot write JSON file '" + o.json + "'");
-    js << j.dump(2) << "\n";
-    if (!js) throw UserError("cannot write JSON file '" + o.json + "'");
+    json_out << j.dump(2) << "\n";
+    if (!json_out) throw UserError("cannot write JSON file '" + o.json + "'");
   }
 }
 

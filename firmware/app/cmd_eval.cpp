@@ -109,6 +109,11 @@ void run_eval(const EvalOptions& o) {
     }
   }
   if (frames.empty()) throw UserError("no frames with ground truth under '" + o.dataset + "'");
+  std::ofstream json_out;  // opened now so a bad path fails before the run, not after it
+  if (!o.json.empty()) {
+    json_out.open(o.json);
+    if (!json_out) throw UserError("cannot write JSON file '" + o.json + "'");
+  }
 
   // One Matcher per search range: the constructor builds the FIS lookup table.
   std::map<int, std::unique_ptr<Matcher>> matchers;
@@ -191,11 +196,9 @@ void run_eval(const EvalOptions& o) {
   }
   std::printf("(threads %d; radiometric '%s'; figures are per-frame means; errors after KITTI hole filling)\n",
               threads, o.radiometric.c_str());
-  if (!o.json.empty()) {
-    std::ofstream js(o.json);
-    if (!js) throw UserError("cannot write JSON file '" + o.json + "'");
-    js << nlohmann::ordered_json{{"sets", sets}}.dump(2) << "\n";
-    if (!js) throw UserError("cannot write JSON file '" + o.json + "'");
+  if (json_out.is_open()) {
+    json_out << nlohmann::ordered_json{{"sets", sets}}.dump(2) << "\n";
+    if (!json_out) throw UserError("cannot write JSON file '" + o.json + "'");
   }
 }
 

@@ -27,7 +27,7 @@ double StageTimings::total_ms() const {
 }
 
 Matcher::Matcher(const MatcherParams& params, const FisDefinition& fis)
-    : params_(params), lut_(fis, params.fis.lut_size) {}
+    : params_(params), lut_(FisLut::cached(fis, params.fis.lut_size)) {}
 
 MatchResult Matcher::match(const ImageU8& left, const ImageU8& right) const {
   return match_with_labels(left, right, nullptr, nullptr);
@@ -69,13 +69,13 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   clock.lap(Stage::Segmentation);
 
   const SegmentCosts cost_l =                                                           // eq. (1)-(9)
-      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, lut_, threads);
+      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, threads);
   const SegmentCosts cost_r =
-      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, lut_, threads);
+      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, threads);
   clock.lap(Stage::Cost);
 
-  r.dec_left = fis_winner_take_all(cost_l, lut_, p.cost);                              // eq. (10)-(12), WTA
-  r.dec_right = fis_winner_take_all(cost_r, lut_, p.cost);
+  r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA
+  r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
   r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity);
   r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity);
   clock.lap(Stage::Wta);

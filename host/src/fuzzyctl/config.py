@@ -207,29 +207,40 @@ def validate(
     source: str,
     base: dict[str, dict[str, Any]] | None = None,
     strict: bool = True,
+    ignored: dict[str, Any] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """``base`` (or nothing) overlaid with ``doc``, every value checked against ``schema``.
 
-    With ``strict=False`` unknown sections/keys are ignored with a warning instead of failing
-    (used for configs recorded in firmware dumps, which may carry test-only keys).
+    With ``strict=False`` unknown sections/keys are skipped instead of failing — collected in
+    ``ignored`` (``{"section.key": value}``) when given, else warned about. Used for configs
+    recorded in firmware dumps, which carry test-only keys (``[testing] inject_shift``).
     """
     out = copy.deepcopy(base) if base is not None else {}
+
+    def skip(msg: str, key: str, value: Any) -> None:
+        if strict:
+            raise FatalError(msg)
+        if ignored is not None:
+            ignored[key] = value
+        else:
+            warnings.warn(msg, stacklevel=3)
+
     for section, fields in doc.items():
         if section not in schema:
             msg = f"{source}: unknown section [{section}] (sections: {', '.join(schema)})"
-            if strict:
-                raise FatalError(msg)
-            warnings.warn(msg, stacklevel=2)
+            if isinstance(fields, dict) and fields:
+                for name, value in fields.items():
+                    skip(msg, f"{section}.{name}", value)
+            else:
+                skip(msg, section, fields)
             continue
         if not isinstance(fields, dict):
             raise FatalError(f"{source}: '{section}' must be a table [{section}]")
         for name, value in fields.items():
             spec = schema[section].get(name)
             if spec is None:
-                msg = f"{source}: unknown key {section}.{name} (keys of [{section}]: {', '.join(schema[section])})"
-                if strict:
-                    raise FatalError(msg)
-                warnings.warn(msg, stacklevel=2)
+                skip(f"{source}: unknown key {section}.{name} (keys of [{section}]: {', '.join(schema[section])})",
+                     f"{section}.{name}", value)
                 continue
             out.setdefault(section, {})[name] = spec.check(value, source)
     return out
@@ -262,11 +273,14 @@ def load_config(path: str | Path | None = None) -> Config:
     return Config(values, str(path))
 
 
-def parse_config(text: str, source: str = "<string>", strict: bool = True) -> Config:
-    """Defaults overlaid with TOML text (e.g. a dump's ``config_toml``)."""
+def parse_config(
+    text: str, source: str = "<string>", strict: bool = True, ignored: dict[str, Any] | None = None
+) -> Config:
+    """Defaults overlaid with TOML text (e.g. a dump's ``config_toml``); see :func:`validate`."""
     schema = load_schema()
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FatalError(f"{source}: not valid TOML: {exc}") from exc
-    return Config(validate(doc, schema, source, base=default_values(schema), strict=strict), source)
+    values = validate(doc, schema, source, base=default_values(schema), strict=strict, ignored=ignored)
+    return Config(values, source)

@@ -17,3 +17,9 @@ class FatalError(RuntimeError):
         err = cls(f"{message}: {exc}")
         err.__cause__ = exc
         return err
+
+
+class CheckFailed(FatalError):
+    """A check ran and its result is outside tolerance (``fis check``, ``compare``): exit code 1."""
+
+    exit_code = 1

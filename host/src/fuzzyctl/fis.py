@@ -20,6 +20,7 @@ The definition is data: ``common/fis/fis.toml``, read by the firmware too. This 
 from __future__ import annotations
 
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -324,7 +325,10 @@ class Fis:
         else:
             sim.input[self.dc1_var.label] = a
             sim.input[self.dc2_var.label] = b
-        sim.compute()
+        with warnings.catch_warnings():
+            # scikit-fuzzy 0.5 calls np.maximum(a, b, out) positionally (deprecated in NumPy 2.4)
+            warnings.filterwarnings("ignore", "Passing more than 2 positional", DeprecationWarning)
+            sim.compute()
         return np.atleast_1d(np.asarray(sim.output[self.out_var.label], dtype=np.float64))
 
     # -- the twin: same arithmetic, vectorised --

@@ -6,6 +6,7 @@
 // per segment the decision is a bilinear table read in fixed point.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,9 @@ class FisLut {
  public:
   FisLut() = default;
   FisLut(const FisDefinition& def, int size);
+  // Process-wide memo: building the table costs ~66k Mamdani evaluations, so matchers that share a
+  // definition and size (eval over several disparity ranges, tests) share one table.
+  static std::shared_ptr<const FisLut> cached(const FisDefinition& def, int size);
 
   int size() const { return size_; }
   // Inputs in Q16 [0, kQ16One]; output Q16. Bilinear between nodes.

@@ -41,11 +41,11 @@ class Matcher {
                                 const ImageI32* labels_right) const;
 
   const MatcherParams& params() const { return params_; }
-  const FisLut& lut() const { return lut_; }
+  const FisLut& lut() const { return *lut_; }
 
  private:
   MatcherParams params_;
-  FisLut lut_;
+  std::shared_ptr<const FisLut> lut_;
 };
 
 }  // namespace fs

@@ -7,6 +7,9 @@
 // clipped term crosses its cut level; aggregation = max; centroid of the piecewise-linear result.
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <mutex>
+#include <sstream>
 #include <stdexcept>
 
 #include "fuzzystereo/fis.hpp"
@@ -53,28 +56,18 @@ double interp_uniform(const std::vector<double>& fp, double x) {
 }
 
 // scikit-fuzzy defuzz 'centroid': moment/area of the piecewise-linear function through (x, y).
+// scikit-fuzzy sums moment*area per interval case by case (rectangle / triangle / trapezoid); all its
+// cases equal the closed form used here, integral of x*y over [x1, x2] =
+// (x2 - x1)/6 * (y1 (2 x1 + x2) + y2 (x1 + 2 x2)), and area (x2 - x1)(y1 + y2)/2 — division-free.
 double centroid(const std::vector<double>& x, const std::vector<double>& y) {
   double sum_moment_area = 0.0, sum_area = 0.0;
   for (std::size_t i = 1; i < x.size(); ++i) {
-    const double x1 = x[i - 1], x2 = x[i], y1 = y[i - 1], y2 = y[i];
-    if ((y1 == 0.0 && y2 == 0.0) || x1 == x2) continue;
-    double moment, area;
-    if (y1 == y2) {
-      moment = 0.5 * (x1 + x2);
-      area = (x2 - x1) * y1;
-    } else if (y1 == 0.0) {
-      moment = 2.0 / 3.0 * (x2 - x1) + x1;
-      area = 0.5 * (x2 - x1) * y2;
-    } else if (y2 == 0.0) {
-      moment = 1.0 / 3.0 * (x2 - x1) + x1;
-      area = 0.5 * (x2 - x1) * y1;
-    } else {
-      moment = (2.0 / 3.0 * (x2 - x1) * (y2 + 0.5 * y1)) / (y1 + y2) + x1;
-      area = 0.5 * (x2 - x1) * (y1 + y2);
-    }
-    sum_moment_area += moment * area;
-    sum_area += area;
+    const double x1 = x[i - 1], x2 = x[i], y1 = y[i - 1], y2 = y[i], dx = x2 - x1;
+    sum_moment_area += dx * (y1 * (2.0 * x1 + x2) + y2 * (x1 + 2.0 * x2));
+    sum_area += dx * (y1 + y2);
   }
+  sum_moment_area /= 6.0;
+  sum_area *= 0.5;
   return sum_moment_area / std::max(sum_area, 2.220446049250313e-16);
 }
 
@@ -82,6 +75,7 @@ double centroid(const std::vector<double>& x, const std::vector<double>& y) {
 struct SampledFis {
   std::vector<std::vector<double>> in1, in2, out;  // term samples on the universes
   std::vector<double> out_u;
+  std::vector<std::pair<int, int>> support;         // per output term: sample range that can be > 0
 };
 
 SampledFis sample(const FisDefinition& def) {
@@ -100,6 +94,13 @@ SampledFis sample(const FisDefinition& def) {
   s.in1 = sample_terms(def.in1, ui);
   s.in2 = sample_terms(def.in2, ui);
   s.out = sample_terms(def.out, s.out_u);
+  const int n = static_cast<int>(s.out_u.size());
+  for (const auto& m : s.out) {
+    int a = 0, b = n - 1;
+    while (a < n && m[std::size_t(a)] == 0.0) ++a;
+    while (b >= 0 && m[std::size_t(b)] == 0.0) --b;
+    s.support.emplace_back(std::max(0, a - 1), std::min(n - 1, b + 1));
+  }
   return s;
 }
 
@@ -115,40 +116,61 @@ double evaluate_sampled(const FisDefinition& def, const SampledFis& s, double x1
     double& c = cut[std::size_t(r.out)];
     c = std::max(c, a);
   }
-  // Support of the active terms bounds the part of the universe that can be non-zero.
+  // Only the support of the active terms can be non-zero.
   const auto& u = s.out_u;
   const int n = static_cast<int>(u.size());
   int lo = n, hi = -1;
   for (std::size_t t = 0; t < cut.size(); ++t) {
     if (cut[t] <= 0.0) continue;
-    const auto& m = s.out[t];
-    int a = 0;
-    while (a < n && m[std::size_t(a)] == 0.0) ++a;
-    int b = n - 1;
-    while (b >= 0 && m[std::size_t(b)] == 0.0) --b;
-    lo = std::min(lo, std::max(0, a - 1));
-    hi = std::max(hi, std::min(n - 1, b + 1));
+    lo = std::min(lo, s.support[t].first);
+    hi = std::max(hi, s.support[t].second);
   }
   if (hi < lo) throw std::runtime_error("FIS: no rule fires; the output is undefined");
-  // Upsampled universe: samples plus the cut-level crossings of every active term.
-  xs.assign(u.begin() + lo, u.begin() + hi + 1);
+  // Cut-level crossings of every active term: (interval index i, x in (u[i], u[i+1])).
+  std::vector<std::pair<int, double>> cross;
   for (std::size_t t = 0; t < cut.size(); ++t) {
     if (cut[t] <= 0.0) continue;
     const auto& m = s.out[t];
-    for (int i = lo; i < hi; ++i) {
+    for (int i = s.support[t].first; i < s.support[t].second; ++i) {
       const double d0 = m[std::size_t(i)] - cut[t], d1 = m[std::size_t(i) + 1] - cut[t];
       if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0))
-        xs.push_back(u[std::size_t(i)] + (cut[t] - m[std::size_t(i)]) * (u[std::size_t(i) + 1] - u[std::size_t(i)]) /
-                                              (m[std::size_t(i) + 1] - m[std::size_t(i)]));
+        cross.emplace_back(i, u[std::size_t(i)] + (cut[t] - m[std::size_t(i)]) *
+                                                      (u[std::size_t(i) + 1] - u[std::size_t(i)]) /
+                                                      (m[std::size_t(i) + 1] - m[std::size_t(i)]));
     }
   }
-  std::sort(xs.begin(), xs.end());
-  xs.erase(std::unique(xs.begin(), xs.end()), xs.end());
-  ys.assign(xs.size(), 0.0);
-  for (std::size_t t = 0; t < cut.size(); ++t) {
-    if (cut[t] <= 0.0) continue;
-    for (std::size_t i = 0; i < xs.size(); ++i)
-      ys[i] = std::max(ys[i], std::min(cut[t], interp_uniform(s.out[t], xs[i])));
+  std::sort(cross.begin(), cross.end());
+  std::vector<std::size_t> active;
+  for (std::size_t t = 0; t < cut.size(); ++t)
+    if (cut[t] > 0.0) active.push_back(t);
+  // Aggregated output (max of clipped terms) at one universe sample, or between samples i, i+1.
+  auto at_sample = [&](int i) {
+    double y = 0.0;
+    for (std::size_t t : active) y = std::max(y, std::min(cut[t], s.out[t][std::size_t(i)]));
+    return y;
+  };
+  auto between = [&](int i, double x) {
+    double y = 0.0;
+    const double f = (x - u[std::size_t(i)]) / (u[std::size_t(i) + 1] - u[std::size_t(i)]);
+    for (std::size_t t : active) {
+      const auto& m = s.out[t];
+      y = std::max(y, std::min(cut[t], m[std::size_t(i)] + f * (m[std::size_t(i) + 1] - m[std::size_t(i)])));
+    }
+    return y;
+  };
+  // Upsampled universe = samples lo..hi merged with the crossings (np.union1d), then centroid.
+  xs.clear();
+  ys.clear();
+  std::size_t c = 0;
+  for (int i = lo; i <= hi; ++i) {
+    xs.push_back(u[std::size_t(i)]);
+    ys.push_back(at_sample(i));
+    for (; c < cross.size() && cross[c].first == i; ++c) {
+      const double x = cross[c].second;
+      if (x <= xs.back() || (i + 1 < n && x >= u[std::size_t(i) + 1])) continue;  // duplicate
+      xs.push_back(x);
+      ys.push_back(between(i, x));
+    }
   }
   return centroid(xs, ys);
 }
@@ -180,6 +202,24 @@ FisLut::FisLut(const FisDefinition& def, int size) : size_(size), table_(std::si
       }
     }
   }
+}
+
+std::shared_ptr<const FisLut> FisLut::cached(const FisDefinition& def, int size) {
+  std::ostringstream key;  // the complete definition, so an edited FIS never hits a stale table
+  key.precision(17);
+  key << size << '|' << def.input_points << '|' << def.output_points;
+  for (const FisVariable* v : {&def.in1, &def.in2, &def.out})
+    for (const auto& t : v->terms) {
+      key << '|' << t.mf;
+      for (double p : t.params) key << ',' << p;
+    }
+  for (const auto& r : def.rules) key << '|' << r.in1 << ',' << r.in2 << ',' << r.out;
+  static std::mutex mu;
+  static std::map<std::string, std::shared_ptr<const FisLut>> memo;
+  std::lock_guard<std::mutex> lock(mu);
+  auto& slot = memo[key.str()];
+  if (!slot) slot = std::make_shared<const FisLut>(def, size);
+  return slot;
 }
 
 // Bilinear read. Node (i, j) sits at (i/(N-1), j/(N-1)). Position a*(N-1) is Q16; the fractional

@@ -1,0 +1,50 @@
+"""Inputs and eq. (5): grey images and gradient magnitude.
+
+Grey conversion is OpenCV's (``IMREAD_COLOR`` + ``COLOR_BGR2GRAY``, as the firmware does); the
+gradient is the 3x3 Sobel pair with replicated border, magnitude rounded to the nearest integer.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import FatalError
+
+
+def load_grey(path: str | Path) -> np.ndarray:
+    """An image file as 8-bit grey (H, W) uint8, converted like the firmware; FatalError naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FatalError(f"image {path} not found")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise FatalError(f"image {path} cannot be decoded")
+    return to_grey(img, str(path))
+
+
+def to_grey(img: np.ndarray, name: str = "image") -> np.ndarray:
+    if img.dtype == np.uint16:
+        img = cv2.convertScaleAbs(img, alpha=1.0 / 256.0)
+    if img.dtype != np.uint8:
+        raise FatalError(f"{name}: only 8- or 16-bit images are supported (got {img.dtype})")
+    if img.ndim == 3 and img.shape[2] == 3:
+        return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim == 3 and img.shape[2] == 4:
+        return cv2.cvtColor(img, cv2.COLOR_BGRA2GRAY)
+    if img.ndim == 3 and img.shape[2] == 1:
+        return np.ascontiguousarray(img[:, :, 0])
+    if img.ndim == 2:
+        return np.ascontiguousarray(img)
+    raise FatalError(f"{name}: unsupported image shape {img.shape}")
+
+
+def gradient_magnitude(img: np.ndarray) -> np.ndarray:
+    """eq. (5): sqrt(gx^2 + gy^2) of 3x3 Sobel derivatives, border replicated, rounded (float64)."""
+    f = img.astype(np.float64)
+    gx = cv2.Sobel(f, cv2.CV_64F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(f, cv2.CV_64F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    # floor(x + 0.5): ties (never reached for integer gx, gy: sqrt of an integer is never k + 0.5)
+    return np.floor(np.sqrt(gx * gx + gy * gy) + 0.5)

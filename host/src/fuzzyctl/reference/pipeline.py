@@ -1,0 +1,116 @@
+"""The float64 desktop reference of the matcher: Section III up to and including ESR.
+
+One line per stage, the same stages and order as firmware/core/src/matcher.cpp. Readable over
+fast: NumPy/OpenCV, every quantity in float64, the FIS evaluated with scikit-fuzzy.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import Config
+from ..errors import FatalError
+from ..fis import Fis
+from . import cost, esr, image, lrcheck, segmentation, wta
+
+STAGES = ("gradient", "segmentation", "cost", "wta", "lrcheck", "esr")
+
+
+@dataclass
+class ReferenceResult:
+    left: np.ndarray
+    right: np.ndarray
+    labels_left: np.ndarray
+    labels_right: np.ndarray
+    costs_left: cost.SegmentCosts
+    costs_right: cost.SegmentCosts
+    dec_left: wta.SegmentDecision
+    dec_right: wta.SegmentDecision
+    disp_left_wta: np.ndarray  # [px], NaN = invalid
+    disp_right_wta: np.ndarray
+    lr_mask: np.ndarray  # bool
+    disp_lr: np.ndarray
+    disp_final: np.ndarray
+    esr_replaced: np.ndarray  # bool
+    esr_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    labels_given: bool = False
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.ms: dict[str, float] = {s: 0.0 for s in STAGES}
+        self._last = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.ms[stage] += (now - self._last) * 1e3
+        self._last = now
+
+
+def _check_labels(labels: np.ndarray | None, shape: tuple[int, int], name: str) -> np.ndarray | None:
+    if labels is None:
+        return None
+    labels = np.asarray(labels)
+    if labels.shape != shape:
+        raise FatalError(f"{name}: labels are {labels.shape[::-1]} (W, H) but the images are {shape[::-1]}")
+    if labels.size and (labels.min() < 0 or np.unique(labels).size != int(labels.max()) + 1):
+        raise FatalError(f"{name}: labels must be dense 0 .. n-1")
+    return labels.astype(np.int32)
+
+
+def match(
+    left: np.ndarray,
+    right: np.ndarray,
+    cfg: Config,
+    fis: Fis,
+    labels_left: np.ndarray | None = None,
+    labels_right: np.ndarray | None = None,
+    engine: str = "fast",
+) -> ReferenceResult:
+    """Run the whole pipeline on two rectified 8-bit grey images of equal size."""
+    if left.shape != right.shape or left.ndim != 2 or left.size == 0:
+        raise FatalError(f"left {left.shape[::-1]} and right {right.shape[::-1]} must be non-empty grey images of equal size")
+    labels_left = _check_labels(labels_left, left.shape, "labels_left")
+    labels_right = _check_labels(labels_right, left.shape, "labels_right")
+    c, s, lr, e = cfg.cost, cfg.segmentation, cfg.lr_check, cfg.esr
+    clock = _Clock()
+
+    grad_l = image.gradient_magnitude(left)  # eq. (5)
+    grad_r = image.gradient_magnitude(right)
+    clock.lap("gradient")
+
+    seg_args = (s.region_size, s.compactness, s.iterations, s.min_segment_pct)
+    lab_l = labels_left if labels_left is not None else segmentation.slic(left, *seg_args)
+    lab_r = labels_right if labels_right is not None else segmentation.slic(right, *seg_args)
+    clock.lap("segmentation")
+
+    costs_l = cost.segment_costs(left, right, grad_l, grad_r, lab_l, +1, c.max_disparity, c.nmi_bins)  # eq. (1)-(7)
+    costs_r = cost.segment_costs(right, left, grad_r, grad_l, lab_r, -1, c.max_disparity, c.nmi_bins)
+    clock.lap("cost")
+
+    dec_l = wta.fis_winner_take_all(costs_l, fis, c.alpha, c.nmi_candidates, engine)  # eq. (8)-(12), WTA
+    dec_r = wta.fis_winner_take_all(costs_r, fis, c.alpha, c.nmi_candidates, engine)
+    disp_l = wta.paint_segments(lab_l, dec_l.disparity)
+    disp_r = wta.paint_segments(lab_r, dec_r.disparity)
+    clock.lap("wta")
+
+    disp_lr, mask = lrcheck.left_right_check(disp_l, disp_r, lr.max_diff)  # eq. (13)
+    clock.lap("lrcheck")
+
+    if e.enabled:  # eq. (14)-(15)
+        final, replaced, maps = esr.entropy_selective_refinement(disp_lr, disp_r, e.window, e.tau, c.max_disparity)
+    else:
+        final, replaced, maps = disp_lr.copy(), np.zeros(left.shape, dtype=bool), {}
+    clock.lap("esr")
+
+    return ReferenceResult(
+        left=left, right=right, labels_left=lab_l, labels_right=lab_r,
+        costs_left=costs_l, costs_right=costs_r, dec_left=dec_l, dec_right=dec_r,
+        disp_left_wta=disp_l, disp_right_wta=disp_r, lr_mask=mask, disp_lr=disp_lr,
+        disp_final=final, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
+        labels_given=labels_left is not None and labels_right is not None,
+    )  # fmt: skip

@@ -1,0 +1,53 @@
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "fuzzystereo/stages.hpp"
+#include "test_util.hpp"
+
+namespace fs {
+namespace {
+
+// Plain scalar reference of eq. (5): Sobel with replicated border, sqrt in double, rounded.
+ImageU16 gradient_reference(const ImageU8& img) {
+  ImageU16 out(img.width, img.height);
+  auto px = [&](int x, int y) {
+    x = std::clamp(x, 0, img.width - 1);
+    y = std::clamp(y, 0, img.height - 1);
+    return static_cast<int>(img.at(x, y));
+  };
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const int kx[3][3] = {{-1, 0, 1}, {-2, 0, 2}, {-1, 0, 1}};
+      int gx = 0, gy = 0;
+      for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) {
+          gx += kx[j + 1][i + 1] * px(x + i, y + j);
+          gy += kx[i + 1][j + 1] * px(x + i, y + j);
+        }
+      out.at(x, y) = static_cast<std::uint16_t>(std::floor(std::sqrt(double(gx * gx + gy * gy)) + 0.5));
+    }
+  return out;
+}
+
+TEST(Gradient, MatchesScalarReferenceOnOddSizes) {
+  for (auto [w, h] : {std::pair{37, 23}, {1, 1}, {2, 5}, {131, 7}}) {
+    const ImageU8 img = test::random_image(w, h, 11u + unsigned(w));
+    EXPECT_EQ(gradient_magnitude(img).data, gradient_reference(img).data) << w << "x" << h;
+  }
+}
+
+TEST(Gradient, MaximumIsBounded) {
+  ImageU8 img(8, 8, 0);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 4; x < 8; ++x) img.at(x, y) = 255;
+  for (int y = 4; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) img.at(x, y) = 255;
+  std::uint16_t m = 0;
+  for (auto v : gradient_magnitude(img).data) m = std::max(m, v);
+  EXPECT_LE(m, 1443);
+  EXPECT_GT(m, 1000);
+}
+
+}  // namespace
+}  // namespace fs

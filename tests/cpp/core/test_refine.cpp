@@ -1,0 +1,157 @@
+// WTA, left-right check (eq. 13) and ESR (eq. 14-15) against plain scalar references.
+#include <cmath>
+#include <map>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "config.hpp"
+#include "fuzzystereo/stages.hpp"
+#include "test_util.hpp"
+
+namespace fs {
+namespace {
+
+ImageI16 random_disp(int w, int h, int D, unsigned seed, int invalid_pct, int block) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> ud(0, D - 1), up(0, 99);
+  ImageI16 img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if ((x % block) == 0 || (y % block) == 0 || (x + y) % 7 == 0) img.at(x, y) = static_cast<std::int16_t>(ud(rng) * kDispScale);
+      else img.at(x, y) = img.at(x - 1, y);
+      if (up(rng) < invalid_pct) img.at(x, y) = kInvalidDisp;
+    }
+  return img;
+}
+
+TEST(Wta, PicksTheBestFisScoreAmongCandidates) {
+  const FisLut& lut = *FisLut::cached(load_fis_definition(""), 257);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<std::uint32_t> u(0, 65536);
+  SegmentCosts c;
+  c.segments = 40;
+  c.disparities = 17;
+  for (int i = 0; i < 40 * 17; ++i) {
+    c.ncc.push_back(u(rng));
+    c.igsad.push_back(u(rng));
+    c.nmi.push_back(u(rng));
+    c.nmi_valid.push_back(static_cast<std::uint8_t>(i % 3 != 0));
+  }
+  CostParams p;
+  p.alpha = 0.3;
+  const SegmentDecision dec = fis_winner_take_all(c, lut, p);
+  const auto a16 = std::uint32_t(std::llround(0.3 * 65536));
+  for (int s = 0; s < 40; ++s) {
+    int best = -1;
+    std::uint32_t bs = 0;
+    for (int d = 0; d < 17; ++d) {
+      const std::size_t i = std::size_t(s * 17 + d);
+      if (!c.nmi_valid[i]) continue;
+      const double dc2 = (0.3 * c.nmi[i] + 0.7 * c.igsad[i]);
+      const std::uint32_t sc = lut.lookup(c.ncc[i], data_cost2_q16(c.nmi[i], c.igsad[i], a16));
+      EXPECT_NEAR(data_cost2_q16(c.nmi[i], c.igsad[i], a16), dc2, 1.0);
+      if (best < 0 || sc > bs) { best = d; bs = sc; }
+    }
+    EXPECT_EQ(dec.disparity[std::size_t(s)], best);
+    EXPECT_EQ(dec.score[std::size_t(s)], bs);
+  }
+}
+
+TEST(LrCheck, MatchesScalarReference) {
+  const ImageI16 l = random_disp(53, 19, 12, 1u, 5, 4), r = random_disp(53, 19, 12, 2u, 5, 4);
+  for (int tol : {0, 1, 3}) {
+    LrParams p;
+    p.max_diff = tol;
+    ImageU8 mask;
+    const ImageI16 out = left_right_check(l, r, p, &mask);
+    for (int y = 0; y < 19; ++y)
+      for (int x = 0; x < 53; ++x) {
+        const int d = l.at(x, y);
+        bool ok = false;
+        if (d >= 0) {
+          const int xr = x - d / kDispScale;  // eq. (13)
+          ok = xr >= 0 && r.at(xr, y) >= 0 && std::abs(d - r.at(xr, y)) <= tol * kDispScale;
+        }
+        EXPECT_EQ(out.at(x, y), ok ? d : kInvalidDisp);
+        EXPECT_EQ(mask.at(x, y), ok ? 1 : 0);
+      }
+  }
+}
+
+std::int32_t entropy_reference(const ImageI16& d, int cx, int cy, int win) {
+  std::map<int, int> hist;
+  int n = 0;
+  for (int y = cy - win / 2; y <= cy + win / 2; ++y)
+    for (int x = cx - win / 2; x <= cx + win / 2; ++x) {
+      if (x < 0 || y < 0 || x >= d.width || y >= d.height || d.at(x, y) < 0) continue;
+      ++hist[d.at(x, y) >> kDispShift];
+      ++n;
+    }
+  if (n == 0) return 0;
+  auto T = [](int c) { return c < 2 ? 0ull : std::uint64_t(std::llround(c * std::log2(double(c)) * 65536.0)); };
+  std::uint64_t s = 0;
+  for (auto [k, c] : hist) s += T(c);
+  return std::int32_t((T(n) - s + std::uint64_t(n) / 2) / std::uint64_t(n));
+}
+
+TEST(Esr, BlockEntropyIncrementalEqualsRecomputation) {
+  for (auto [w, h, win] : {std::tuple{41, 17, 5}, {23, 31, 9}, {7, 5, 11}, {64, 3, 3}}) {
+    const ImageI16 d = random_disp(w, h, 20, 7u, 10, 3);
+    const ImageI32 e = block_entropy(d, win, 20);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) ASSERT_EQ(e.at(x, y), entropy_reference(d, x, y, win)) << x << "," << y << " w" << win;
+  }
+}
+
+TEST(Esr, EntropyOfKnownBlocks) {
+  ImageI16 d(9, 9, static_cast<std::int16_t>(3 * kDispScale));
+  EXPECT_EQ(block_entropy(d, 3, 8).at(4, 4), 0);  // constant block: 0 bit
+  for (int x = 0; x < 9; x += 2)
+    for (int y = 0; y < 9; ++y) d.at(x, y) = static_cast<std::int16_t>(5 * kDispScale);
+  // 3x3 block centred on an odd column: 3 of 9 at 5, 6 of 9 at 3 -> H = 0.9183 bit.
+  EXPECT_NEAR(block_entropy(d, 3, 8).at(3, 4) / 65536.0, 0.918296, 1e-4);
+}
+
+TEST(Esr, BlockMeanMatchesScalarReference) {
+  const ImageI16 d = random_disp(29, 13, 30, 9u, 20, 5);
+  const ImageI16 m = block_mean(d, 5);
+  for (int y = 0; y < 13; ++y)
+    for (int x = 0; x < 29; ++x) {
+      std::int64_t s = 0, n = 0;
+      for (int yy = y - 2; yy <= y + 2; ++yy)
+        for (int xx = x - 2; xx <= x + 2; ++xx)
+          if (xx >= 0 && yy >= 0 && xx < 29 && yy < 13 && d.at(xx, yy) >= 0) { s += d.at(xx, yy); ++n; }
+      EXPECT_EQ(m.at(x, y), n ? std::int16_t(std::floor(double(s) / double(n) + 0.5)) : kInvalidDisp);
+    }
+}
+
+TEST(Esr, ReplacesOnlyWhereEntropiesDiffer) {
+  const ImageI16 l = random_disp(47, 21, 16, 11u, 10, 4), r = random_disp(47, 21, 16, 12u, 3, 6);
+  EsrParams p;
+  p.window = 5;
+  p.tau = 0.4;
+  ImageU8 replaced;
+  const ImageI16 out = entropy_selective_refinement(l, r, p, 16, &replaced);
+  const ImageI32 El = block_entropy(l, 5, 16), Er = block_entropy(r, 5, 16);
+  const ImageI16 Ml = block_mean(l, 5), Mr = block_mean(r, 5);
+  int n_replaced = 0;
+  for (int y = 0; y < 21; ++y)
+    for (int x = 0; x < 47; ++x) {
+      const int d = l.at(x, y);
+      std::int16_t want = static_cast<std::int16_t>(d);
+      if (d >= 0) {
+        const int xr = x - d / kDispScale;
+        if (xr >= 0) {
+          const double el = El.at(x, y) / 65536.0, er = Er.at(xr, y) / 65536.0;  // eq. (15)
+          if (std::fabs(el - er) > 0.4 + 1e-9) want = el < er ? Ml.at(x, y) : Mr.at(xr, y);
+        }
+      }
+      EXPECT_EQ(out.at(x, y), want);
+      n_replaced += replaced.at(x, y);
+    }
+  EXPECT_GT(n_replaced, 0);
+}
+
+}  // namespace
+}  // namespace fs

@@ -1,0 +1,112 @@
+#include <queue>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "fuzzystereo/stages.hpp"
+#include "test_util.hpp"
+
+namespace fs {
+namespace {
+
+// Every label must be one 4-connected region.
+bool labels_connected(const ImageI32& l, int count) {
+  std::vector<int> seen_components(std::size_t(count), 0);
+  ImageU8 visited(l.width, l.height, 0);
+  for (int y = 0; y < l.height; ++y)
+    for (int x = 0; x < l.width; ++x) {
+      if (visited.at(x, y)) continue;
+      const int lab = l.at(x, y);
+      if (++seen_components[std::size_t(lab)] > 1) return false;
+      std::queue<std::pair<int, int>> q;
+      q.push({x, y});
+      visited.at(x, y) = 1;
+      while (!q.empty()) {
+        auto [cx, cy] = q.front();
+        q.pop();
+        const int dx[4] = {1, -1, 0, 0}, dy[4] = {0, 0, 1, -1};
+        for (int k = 0; k < 4; ++k) {
+          const int nx = cx + dx[k], ny = cy + dy[k];
+          if (nx < 0 || ny < 0 || nx >= l.width || ny >= l.height) continue;
+          if (visited.at(nx, ny) || l.at(nx, ny) != lab) continue;
+          visited.at(nx, ny) = 1;
+          q.push({nx, ny});
+        }
+      }
+    }
+  return true;
+}
+
+TEST(Slic, LabelsDenseConnectedAndRunsCoverImage) {
+  for (auto [w, h, S] : {std::tuple{97, 61, 8}, {33, 17, 5}, {5, 3, 4}, {150, 41, 12}}) {
+    const ImageU8 img = test::texture_image(w, h, 3u);
+    SegmentationParams p;
+    p.region_size = S;
+    const Segmentation seg = slic_segment(img, p);
+    ASSERT_GT(seg.count, 0);
+    std::set<int> used(seg.labels.data.begin(), seg.labels.data.end());
+    EXPECT_EQ(int(used.size()), seg.count);
+    EXPECT_EQ(*used.begin(), 0);
+    EXPECT_TRUE(labels_connected(seg.labels, seg.count)) << w << "x" << h;
+    // Runs: each pixel exactly once, with the right label; pixel counts agree.
+    ImageU8 cover(w, h, 0);
+    for (int s = 0; s < seg.count; ++s) {
+      int n = 0;
+      for (int r = seg.run_begin[std::size_t(s)]; r < seg.run_begin[std::size_t(s) + 1]; ++r) {
+        const fs::Run& run = seg.runs[std::size_t(r)];
+        for (int x = run.x0; x < run.x1; ++x) {
+          EXPECT_EQ(seg.labels.at(x, run.y), s);
+          ++cover.at(x, run.y);
+          ++n;
+        }
+      }
+      EXPECT_EQ(n, seg.pixels[std::size_t(s)]);
+    }
+    for (auto c : cover.data) ASSERT_EQ(c, 1);
+  }
+}
+
+TEST(Slic, Deterministic) {
+  const ImageU8 img = test::texture_image(64, 48, 9u);
+  SegmentationParams p;
+  EXPECT_EQ(slic_segment(img, p).labels.data, slic_segment(img, p).labels.data);
+}
+
+TEST(Slic, SegmentCountFollowsRegionSize) {
+  const ImageU8 img = test::texture_image(120, 80, 5u);
+  SegmentationParams p;
+  p.region_size = 8;
+  const int n8 = slic_segment(img, p).count;
+  p.region_size = 16;
+  const int n16 = slic_segment(img, p).count;
+  EXPECT_GT(n8, 2 * n16);
+  EXPECT_NEAR(n8, 120 * 80 / 64, 120 * 80 / 64 / 2);
+}
+
+TEST(Slic, SegmentsFollowAStepEdge) {
+  // Two flat halves: no segment may straddle the edge at x = 30.
+  ImageU8 img(61, 40, 40);
+  for (int y = 0; y < 40; ++y)
+    for (int x = 30; x < 61; ++x) img.at(x, y) = 200;
+  SegmentationParams p;
+  p.region_size = 8;
+  const Segmentation seg = slic_segment(img, p);
+  for (int s = 0; s < seg.count; ++s) {
+    std::set<bool> side;
+    for (int r = seg.run_begin[std::size_t(s)]; r < seg.run_begin[std::size_t(s) + 1]; ++r)
+      for (int x = seg.runs[std::size_t(r)].x0; x < seg.runs[std::size_t(r)].x1; ++x) side.insert(x >= 30);
+    EXPECT_EQ(side.size(), 1u) << "segment " << s;
+  }
+}
+
+TEST(Segmentation, FromLabelsBuildsRuns) {
+  ImageI32 l(5, 2);
+  l.data = {0, 0, 1, 1, 0, 2, 2, 2, 1, 0};
+  const Segmentation seg = segmentation_from_labels(l);
+  EXPECT_EQ(seg.count, 3);
+  EXPECT_EQ(seg.pixels, (std::vector<std::int32_t>{4, 3, 3}));
+  EXPECT_EQ(seg.run_begin, (std::vector<std::int32_t>{0, 3, 5, 6}));
+}
+
+}  // namespace
+}  // namespace fs
