@@ -43,12 +43,13 @@ void write_dump(const std::string& dir, const MatchOptions& o, const MatcherPara
       t.push_back(static_cast<std::int32_t>(d.score[s]));
       t.push_back(static_cast<std::int32_t>(d.dc1[s]));
       t.push_back(static_cast<std::int32_t>(d.dc2[s]));
+      t.push_back(d.disparity_q4[s]);
     }
     return t;
   };
   const auto tl = seg_table(r.dec_left), tr = seg_table(r.dec_right);
-  write_npy(dir + "/seg_left.npy", tl.data(), {r.dec_left.disparity.size(), 4});
-  write_npy(dir + "/seg_right.npy", tr.data(), {r.dec_right.disparity.size(), 4});
+  write_npy(dir + "/seg_left.npy", tl.data(), {r.dec_left.disparity.size(), 5});
+  write_npy(dir + "/seg_right.npy", tr.data(), {r.dec_right.disparity.size(), 5});
   write_npy(dir + "/disp_left_wta.npy", r.disp_left_wta.data.data(), {h, w});
   write_npy(dir + "/disp_right_wta.npy", r.disp_right_wta.data.data(), {h, w});
   write_npy(dir + "/lr_mask.npy", r.lr_mask.data.data(), {h, w});

@@ -76,8 +76,8 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
 
   r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA
   r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
-  r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity);
-  r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity);
+  r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity_q4);
+  r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity_q4);
   clock.lap(Stage::Wta);
 
   r.disp_lr = left_right_check(r.disp_left_wta, r.disp_right_wta, p.lr, &r.lr_mask);  // eq. (13)

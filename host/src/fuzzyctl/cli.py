@@ -262,8 +262,10 @@ def compare_cmd(run_dir: Path, tolerances: Path | None, report: Path | None, ref
     with console.status("running the reference on the dump ..."):
         c = compare_run(run_dir, tolerances, fis_file, engine=engine, own_segmentation=own_segmentation)
     table = Table(title=f"firmware vs reference — {c.dump.path}")
-    for col in ("stage", "metric", "value", "tolerance", "status"):
-        table.add_column(col)
+    table.add_column("stage", no_wrap=True, min_width=12)
+    table.add_column("metric", no_wrap=True, min_width=36)
+    for col in ("value", "tolerance", "status"):
+        table.add_column(col, no_wrap=True)
     failing = {m.name for m, _ in c.failures()}
     for m in c.metrics:
         tol = c.tolerances.get(m.name)

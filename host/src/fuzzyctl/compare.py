@@ -27,8 +27,11 @@ from . import paths
 from .config import Config, default_values, parse_config
 from .errors import FatalError
 from .fis import Fis, load_definition
-from .reference import ReferenceResult, match
+from .reference import STAGES, ReferenceResult, match
+from .reference.esr import entropy_selective_refinement
+from .reference.lrcheck import left_right_check
 from .reference.segmentation import label_agreement
+from .reference.wta import paint_segments
 
 
 #: config sections the reference does not model (they only alter the firmware)
@@ -146,8 +149,13 @@ for _map, _stage in (("wta_left", "wta"), ("wta_right", "wta"), ("lr", "lrcheck"
         _doc(f"{_map}_within_{_t}px_pct", _stage, "%", f"pixels of {_map} within {_t} px (both invalid agree)")
 _doc("lr_mask_agreement_pct", "lrcheck", "%", "pixels with the same eq. (13) verdict")
 _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) replaced flag")
+_doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides)")
+_doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask")
+_doc("esr_replaced_isolated_agreement_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's replaced mask")
+_doc("final_isolated_within_0px_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's final map (Q4)")
 _doc("final_valid_firmware_pct", "esr", "%", "valid pixels of the firmware's final map")
 _doc("final_valid_reference_pct", "esr", "%", "valid pixels of the reference's final map")
+_doc("reference_fis_check_error", "wta", "", "reference: |fast FIS engine - ControlSystemSimulation| on sampled winners")
 
 
 def reference_q4(disp: np.ndarray) -> np.ndarray:
@@ -163,7 +171,10 @@ def map_agreement(a: np.ndarray, b: np.ndarray, tol: float) -> float:
     return 100.0 * float(np.mean(close | (~va & ~vb)))
 
 
-def compute_metrics(d: dumpmod.Dump, r: ReferenceResult) -> list[Metric]:
+def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Metric]:
+    """Every metric of METRIC_DOCS. End-to-end metrics compare the reference's own chain with the
+    firmware's; *_isolated metrics run one reference stage on the firmware's inputs of that stage,
+    which tells in which stage a difference starts."""
     values: dict[str, float | None] = {}
     for side in ("left", "right"):
         fw_labels = d[f"labels_{side}"]
@@ -203,10 +214,28 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult) -> list[Metric]:
             values[f"{name}_within_{t}px_pct"] = map_agreement(fw, ref, t)
     values["lr_mask_agreement_pct"] = 100.0 * float(np.mean((d["lr_mask"] != 0) == r.lr_mask))
     values["esr_replaced_agreement_pct"] = 100.0 * float(np.mean((d["esr_replaced"] != 0) == r.esr_replaced))
+    # stage-isolated
+    painted = [
+        dumpmod.disp_to_q4(paint_segments(d[f"labels_{side}"], d[f"seg_{side}"][:, dumpmod.SEG_DISP]))
+        == d[f"disp_{side}_wta"]
+        for side in ("left", "right")
+    ]
+    values["wta_paint_isolated_pct"] = 100.0 * float(np.mean(np.concatenate([p.ravel() for p in painted])))
+    fw_wta_l, fw_wta_r, fw_lr = d.disp("disp_left_wta"), d.disp("disp_right_wta"), d.disp("disp_lr")
+    _, iso_mask = left_right_check(fw_wta_l, fw_wta_r, cfg.lr_check.max_diff)
+    values["lr_mask_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_mask == (d["lr_mask"] != 0)))
+    if cfg.esr.enabled:
+        iso_final, iso_rep, _ = entropy_selective_refinement(fw_lr, fw_wta_r, cfg.esr.window, cfg.esr.tau, cfg.cost.max_disparity)
+    else:
+        iso_final, iso_rep = fw_lr, np.zeros(fw_lr.shape, dtype=bool)
+    values["esr_replaced_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_rep == (d["esr_replaced"] != 0)))
+    values["final_isolated_within_0px_pct"] = map_agreement(d.disp("disp_final"), reference_q4(iso_final), 0)
+    values["reference_fis_check_error"] = r.fis_check_error
     values["final_valid_firmware_pct"] = 100.0 * float(np.mean(d["disp_final"] != dumpmod.INVALID_DISP))
     values["final_valid_reference_pct"] = 100.0 * float(np.mean(~np.isnan(r.disp_final)))
 
-    return [Metric(name, *METRIC_DOCS[name][:1], values[name], *METRIC_DOCS[name][1:]) for name in METRIC_DOCS]
+    metrics = [Metric(name, *METRIC_DOCS[name][:1], values[name], *METRIC_DOCS[name][1:]) for name in METRIC_DOCS]
+    return sorted(metrics, key=lambda m: STAGES.index(m.stage))  # pipeline order (stable within a stage)
 
 
 def compare_run(
@@ -237,4 +266,4 @@ def compare_run(
         raise FatalError(f"{meta_path}: the firmware used FIS '{fis_name}' but {fis.defn.source} is '{fis.defn.name}' (pass --fis)")
     labels = (None, None) if own_segmentation else (d["labels_left"], d["labels_right"])
     r = match(d.left, d.right, cfg, fis, labels[0], labels[1], engine=engine)
-    return Comparison(d, r, cfg, fis, compute_metrics(d, r), tol, ignored)
+    return Comparison(d, r, cfg, fis, compute_metrics(d, r, cfg), tol, ignored)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import tomllib
 import warnings
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Iterable
 
@@ -283,9 +283,30 @@ class Fis:
 
     def __init__(self, defn: FisDefinition):
         self.defn = defn
-        self.system, self.dc1_var, self.dc2_var, self.out_var = build_control_system(defn)
         self._twin = _MamdaniTwin(defn)
         self._memo: dict[tuple[float, float], float] = {}
+
+    @cached_property
+    def _control(self):
+        # built on first use: constructing the networkx rule graph takes seconds
+        return build_control_system(self.defn)
+
+    @property
+    def system(self):
+        """The ``skfuzzy.control.ControlSystem``."""
+        return self._control[0]
+
+    @property
+    def dc1_var(self):
+        return self._control[1]
+
+    @property
+    def dc2_var(self):
+        return self._control[2]
+
+    @property
+    def out_var(self):
+        return self._control[3]
 
     # -- the oracle: scikit-fuzzy's ControlSystemSimulation --
 

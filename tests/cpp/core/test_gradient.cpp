@@ -51,3 +51,19 @@ TEST(Gradient, MaximumIsBounded) {
 
 }  // namespace
 }  // namespace fs
+
+namespace fs {
+namespace {
+TEST(Gradient, DoubleSqrtRoundingIsExactOverTheWholeRange) {
+  // Every v = gx^2 + gy^2 the Sobel can produce is below 2 * 1020^2 + 1.
+  for (std::uint64_t v = 0; v <= 2u * 1020u * 1020u; ++v) {
+    std::uint64_t r = 0;
+    r = static_cast<std::uint64_t>(std::sqrt(double(v)));
+    while (r * r > v) --r;
+    while ((r + 1) * (r + 1) <= v) ++r;
+    const std::uint64_t exact = (v - r * r > r) ? r + 1 : r;
+    ASSERT_EQ(static_cast<std::uint64_t>(std::sqrt(static_cast<double>(v)) + 0.5), exact) << v;
+  }
+}
+}  // namespace
+}  // namespace fs

@@ -18,7 +18,7 @@ ImageI16 random_disp(int w, int h, int D, unsigned seed, int invalid_pct, int bl
   ImageI16 img(w, h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      if ((x % block) == 0 || (y % block) == 0 || (x + y) % 7 == 0) img.at(x, y) = static_cast<std::int16_t>(ud(rng) * kDispScale);
+      if ((x % block) == 0 || (y % block) == 0 || (x + y) % 7 == 0) img.at(x, y) = static_cast<std::int16_t>(ud(rng) * kDispScale + (x * 5 + y) % 16);
       else img.at(x, y) = img.at(x - 1, y);
       if (up(rng) < invalid_pct) img.at(x, y) = kInvalidDisp;
     }
@@ -70,7 +70,7 @@ TEST(LrCheck, MatchesScalarReference) {
         const int d = l.at(x, y);
         bool ok = false;
         if (d >= 0) {
-          const int xr = x - d / kDispScale;  // eq. (13)
+          const int xr = x - int(std::floor(d / 16.0 + 0.5));  // eq. (13), nearest pixel
           ok = xr >= 0 && r.at(xr, y) >= 0 && std::abs(d - r.at(xr, y)) <= tol * kDispScale;
         }
         EXPECT_EQ(out.at(x, y), ok ? d : kInvalidDisp);
@@ -85,7 +85,7 @@ std::int32_t entropy_reference(const ImageI16& d, int cx, int cy, int win) {
   for (int y = cy - win / 2; y <= cy + win / 2; ++y)
     for (int x = cx - win / 2; x <= cx + win / 2; ++x) {
       if (x < 0 || y < 0 || x >= d.width || y >= d.height || d.at(x, y) < 0) continue;
-      ++hist[d.at(x, y) >> kDispShift];
+      ++hist[int(std::floor(d.at(x, y) / 16.0 + 0.5))];
       ++n;
     }
   if (n == 0) return 0;
@@ -141,7 +141,7 @@ TEST(Esr, ReplacesOnlyWhereEntropiesDiffer) {
       const int d = l.at(x, y);
       std::int16_t want = static_cast<std::int16_t>(d);
       if (d >= 0) {
-        const int xr = x - d / kDispScale;
+        const int xr = x - int(std::floor(d / 16.0 + 0.5));
         if (xr >= 0) {
           const double el = El.at(x, y) / 65536.0, er = Er.at(xr, y) / 65536.0;  // eq. (15)
           if (std::fabs(el - er) > 0.4 + 1e-9) want = el < er ? Ml.at(x, y) : Mr.at(xr, y);

@@ -17,6 +17,7 @@ struct CostParams {
   double alpha = 0.5;       // eq. (9)
   int nmi_bins = 16;        // eq. (2)-(4)
   int nmi_candidates = 8;   // 0 = exhaustive
+  bool subpixel = true;     // parabola fit on the FIS scores around the winner
   int inject_shift = 0;     // TEST ONLY: adds a bias to the right-image shift (fault injection)
 };
 

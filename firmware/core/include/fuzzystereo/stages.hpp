@@ -60,6 +60,7 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
 // ---- fis/ + wta/ ----------------------------------------------------------------------------
 struct SegmentDecision {
   std::vector<std::int16_t> disparity;  // per segment, integer px (kInvalidDisp if no candidate)
+  std::vector<std::int16_t> disparity_q4;  // with the sub-pixel offset, Q4 (kInvalidDisp if none)
   std::vector<std::uint32_t> score;     // FIS output of the winner, Q16
   std::vector<std::uint32_t> dc1;       // winner's inputs, Q16
   std::vector<std::uint32_t> dc2;
@@ -69,10 +70,15 @@ struct SegmentDecision {
 std::uint32_t data_cost2_q16(std::uint32_t nmi_q16, std::uint32_t igsad_q16, std::uint32_t alpha_q16);
 
 // Winner-take-all over the FIS score (Section III): per segment, argmax_d FIS(dc1, dc2).
+// With p.subpixel, a parabola through the scores at d-1, d, d+1 (when both neighbours were
+// evaluated) moves the winner by at most half a pixel: disparity_q4 = 16 d + offset.
 SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis, const CostParams& p);
 
-// Paint per-segment disparities into a Q4 disparity map.
-ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp);
+// Paint per-segment Q4 disparities into a Q4 disparity map.
+ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp_q4);
+
+// Integer pixel of the partner of x for a Q4 disparity: x - round(d).
+inline int partner_x(int x, std::int16_t d_q4) { return x - ((d_q4 + kDispScale / 2) >> kDispShift); }
 
 // ---- lrcheck/ -------------------------------------------------------------------------------
 // eq. (13): keeps d_l(x,y) where |d_l(x,y) - d_r(x - d_l(x,y), y)| <= max_diff, else kInvalidDisp.

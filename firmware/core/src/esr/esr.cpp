@@ -28,7 +28,7 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
       for (int yy = y0; yy <= y1; ++yy) {
         const std::int16_t d = disp.at(x, yy);
         if (d == kInvalidDisp) continue;
-        const int b = std::min(d >> kDispShift, max_disparity);
+        const int b = std::min((d + kDispScale / 2) >> kDispShift, max_disparity);  // nearest integer px
         std::uint32_t& c = hist[std::size_t(b)];
         if (sign > 0) { sum_t += T[c + 1] - T[c]; ++c; ++n; }
         else          { sum_t -= T[c] - T[c - 1]; --c; --n; }
@@ -86,7 +86,7 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
     for (int x = 0; x < w; ++x) {
       const std::int16_t d = disp_lr.at(x, y);
       if (d == kInvalidDisp) continue;
-      const int xr = x - (d >> kDispShift);
+      const int xr = partner_x(x, d);
       if (xr < 0 || xr >= w) continue;
       const std::int64_t el = El.at(x, y), er = Er.at(xr, y);
       if (std::llabs(el - er) <= tau) continue;  // eq. (15), "otherwise"

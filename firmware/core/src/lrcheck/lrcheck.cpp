@@ -17,7 +17,7 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
     for (int x = 0; x < w; ++x) {
       const std::int16_t d = l[x];
       if (d == kInvalidDisp) continue;
-      const int xr = x - (d >> kDispShift);
+      const int xr = partner_x(x, d);
       if (xr < 0 || r[xr] == kInvalidDisp) continue;
       if (std::abs(d - r[xr]) <= tol) {
         o[x] = d;

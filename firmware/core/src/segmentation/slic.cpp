@@ -2,7 +2,8 @@
 // Each segment is a variable-size matching window for the data costs.
 //
 // Distance (SLIC, Achanta et al. 2012) scaled by S^2 to stay integer:
-//   D' = dI^2 * S^2 + (dx^2 + dy^2) * m^2      (uint64; dI <= 255, |dx|,|dy| <= 2S)
+//   D' = dI^2 * S^2 + (dx^2 + dy^2) * m^2      (uint32: dI <= 255, |dx|,|dy| <= S, S <= 48,
+//                                              m <= 100 -> D' <= 1.5e8 + 4.6e7 < 2^32)
 // Centres: grid of step S, then moved to the lowest-gradient pixel of their 3x3 neighbourhood.
 // Centre update: integer mean (rounded) of the assigned pixels' position and grey level.
 // Connectivity: pieces smaller than min_segment_pct % of S^2 join the previous neighbouring segment.
@@ -84,10 +85,10 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
   if (centers.empty()) centers.push_back({w / 2, h / 2, img.at(w / 2, h / 2)});
 
   ImageI32 labels(w, h, -1);
-  std::vector<std::uint64_t> dist(std::size_t(w) * std::size_t(h));
+  std::vector<std::uint32_t> dist(std::size_t(w) * std::size_t(h));
   std::vector<std::int64_t> sx(centers.size()), sy(centers.size()), si(centers.size()), cnt(centers.size());
   for (int it = 0; it < p.iterations; ++it) {
-    std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint64_t>::max());
+    std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
     for (std::size_t k = 0; k < centers.size(); ++k) {
       const Center& c = centers[k];
       const int x0 = std::max<int>(0, int(c.x) - S), x1 = std::min<int>(w - 1, int(c.x) + S);
@@ -95,12 +96,17 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
       for (int y = y0; y <= y1; ++y) {
         const std::uint8_t* r = img.row(y);
         std::int32_t* lab = labels.row(y);
-        std::uint64_t* dr = dist.data() + std::size_t(y) * std::size_t(w);
-        const std::int64_t dy2 = (y - c.y) * (y - c.y);
+        std::uint32_t* dr = dist.data() + std::size_t(y) * std::size_t(w);
+        const auto dy2 = static_cast<std::uint32_t>((y - c.y) * (y - c.y));
+        const auto ci = static_cast<std::int32_t>(c.i), cx = static_cast<std::int32_t>(c.x);
+        const auto s2 = static_cast<std::uint32_t>(S2), mm = static_cast<std::uint32_t>(m2);
+        const auto kk = static_cast<std::int32_t>(k);
         for (int x = x0; x <= x1; ++x) {
-          const std::int64_t di = r[x] - c.i, dx = x - c.x;
-          const auto d = static_cast<std::uint64_t>(di * di * S2 + (dx * dx + dy2) * m2);
-          if (d < dr[x]) { dr[x] = d; lab[x] = static_cast<std::int32_t>(k); }
+          const std::int32_t di = r[x] - ci, dx = x - cx;
+          const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
+          const bool closer = d < dr[x];
+          dr[x] = closer ? d : dr[x];
+          lab[x] = closer ? kk : lab[x];
         }
       }
     }

@@ -19,6 +19,7 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   SegmentDecision dec;
   const std::size_t n = std::size_t(costs.segments);
   dec.disparity.assign(n, kInvalidDisp);
+  dec.disparity_q4.assign(n, kInvalidDisp);
   dec.score.assign(n, 0);
   dec.dc1.assign(n, 0);
   dec.dc2.assign(n, 0);
@@ -38,15 +39,32 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
         dec.dc2[s] = dc2;
       }
     }
+    const int d = dec.disparity[s];
+    if (d < 0) continue;
+    int offset = 0;
+    if (p.subpixel && d > 0 && d < D - 1 && costs.nmi_valid[off + std::size_t(d) - 1] && costs.nmi_valid[off + std::size_t(d) + 1]) {
+      auto score_at = [&](int dd) {
+        const std::size_t i = off + std::size_t(dd);
+        return static_cast<std::int64_t>(fis.lookup(costs.ncc[i], data_cost2_q16(costs.nmi[i], costs.igsad[i], alpha_q16)));
+      };
+      const std::int64_t sm = score_at(d - 1), s0 = best, sp = score_at(d + 1);
+      const std::int64_t curv = 2 * s0 - sm - sp;  // > 0 at a strict maximum
+      if (curv > 0) {
+        // vertex of the parabola: (sp - sm) / (2 curv) px, in Q4 rounded to nearest, |.| <= 1/2 px
+        const std::int64_t num = (sp - sm) * kDispScale, den = 2 * curv;
+        offset = static_cast<int>((num >= 0 ? num + den / 2 : num - den / 2) / den);
+        offset = std::clamp(offset, -kDispScale / 2, kDispScale / 2);
+      }
+    }
+    dec.disparity_q4[s] = static_cast<std::int16_t>(d * kDispScale + offset);
   }
   return dec;
 }
 
-ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp) {
+ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>& seg_disp_q4) {
   ImageI16 out(seg.labels.width, seg.labels.height, kInvalidDisp);
   for (int s = 0; s < seg.count; ++s) {
-    const std::int16_t d = seg_disp[std::size_t(s)];
-    const std::int16_t v = d < 0 ? kInvalidDisp : static_cast<std::int16_t>(d * kDispScale);
+    const std::int16_t v = seg_disp_q4[std::size_t(s)] < 0 ? kInvalidDisp : seg_disp_q4[std::size_t(s)];
     for (std::int32_t r = seg.run_begin[std::size_t(s)]; r < seg.run_begin[std::size_t(s) + 1]; ++r) {
       const Run& run = seg.runs[std::size_t(r)];
       std::fill(out.row(run.y) + run.x0, out.row(run.y) + run.x1, v);

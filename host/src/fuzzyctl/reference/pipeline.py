@@ -38,6 +38,7 @@ class ReferenceResult:
     esr_maps: dict[str, np.ndarray] = field(default_factory=dict)
     timings_ms: dict[str, float] = field(default_factory=dict)
     labels_given: bool = False
+    fis_check_error: float = 0.0  # max |fast engine - ControlSystemSimulation| on sampled winners
 
 
 class _Clock:
@@ -94,6 +95,7 @@ def match(
 
     dec_l = wta.fis_winner_take_all(costs_l, fis, c.alpha, c.nmi_candidates, engine)  # eq. (8)-(12), WTA
     dec_r = wta.fis_winner_take_all(costs_r, fis, c.alpha, c.nmi_candidates, engine)
+    fis_check = _cross_check(fis, dec_l, dec_r) if engine == "fast" else 0.0
     disp_l = wta.paint_segments(lab_l, dec_l.disparity)
     disp_r = wta.paint_segments(lab_r, dec_r.disparity)
     clock.lap("wta")
@@ -112,5 +114,10 @@ def match(
         costs_left=costs_l, costs_right=costs_r, dec_left=dec_l, dec_right=dec_r,
         disp_left_wta=disp_l, disp_right_wta=disp_r, lr_mask=mask, disp_lr=disp_lr,
         disp_final=final, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
-        labels_given=labels_left is not None and labels_right is not None,
+        labels_given=labels_left is not None and labels_right is not None, fis_check_error=fis_check,
     )  # fmt: skip
+
+
+def _cross_check(fis: Fis, dec_l: wta.SegmentDecision, dec_r: wta.SegmentDecision, samples: int = 64) -> float:
+    """The fast FIS engine against ControlSystemSimulation on a sample of the winners' inputs."""
+    return fis.cross_check(np.concatenate([dec_l.dc1, dec_r.dc1]), np.concatenate([dec_l.dc2, dec_r.dc2]), samples=samples)

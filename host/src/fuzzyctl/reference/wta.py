@@ -9,7 +9,7 @@ WTA ties go to the smaller d.
 The FIS is scikit-fuzzy's (:class:`fuzzyctl.fis.Fis`): ``engine="skfuzzy"`` runs
 ``ControlSystemSimulation`` on every distinct input pair; ``engine="fast"`` (default) runs the
 vectorised twin of the same arithmetic, cross-checked against ``ControlSystemSimulation`` on a
-sample of the pairs of each call.
+sample of the winners' input pairs of every run (``pipeline.match``).
 """
 
 from __future__ import annotations
@@ -33,8 +33,12 @@ class SegmentDecision:
     candidates: np.ndarray  # (n, K) disparities that took part in the WTA
 
 
-def fis_scores(fis: Fis, dc1: np.ndarray, dc2: np.ndarray, engine: str = "fast", check_samples: int = 32) -> np.ndarray:
-    """FIS output for every pair (arrays of one shape); identical pairs are evaluated once."""
+def fis_scores(fis: Fis, dc1: np.ndarray, dc2: np.ndarray, engine: str = "fast", check_samples: int = 0) -> np.ndarray:
+    """FIS output for every pair (arrays of one shape); identical pairs are evaluated once.
+
+    ``check_samples`` > 0 cross-checks the fast engine on that many of the pairs (FatalError on
+    disagreement); the pipeline does it once per run on the winners instead.
+    """
     shape = np.shape(dc1)
     pairs, inverse = np.unique(np.stack([np.ravel(dc1), np.ravel(dc2)], axis=1), axis=0, return_inverse=True)
     if engine == "skfuzzy":

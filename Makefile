@@ -1,0 +1,136 @@
+# fuzzystereo — top-level entry points (Debian 12). CMake does the real work; see CMakePresets.json.
+#
+#   make deps           install missing apt packages (sudo when not root) and the host venv
+#   make build          native Release build            (preset: default -> build/default)
+#   make build-aarch64  cross build of core + unit tests  (preset: aarch64 -> build/aarch64)
+#   make test           deps, native build + ctest, pytest (tests/python), aarch64 build + ctest
+#                       under qemu; runs every stage and exits non-zero if any failed
+#   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
+#   make demo           deps, build, then match the OpenCV "aloe" pair into out/demo
+#   make clean          remove build/ and out/   (make distclean also removes .venv)
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+MAKEFLAGS += --no-print-directory
+.DEFAULT_GOAL := build
+
+NPROC := $(shell nproc 2>/dev/null || echo 2)
+
+# Stereo datasets for quality tests; tests skip with a message when the directory is absent.
+FUZZYSTEREO_DATASETS ?= $(abspath $(CURDIR)/../shared/datasets)
+export FUZZYSTEREO_DATASETS
+
+# ---- dependencies --------------------------------------------------------------------------------
+APT_PACKAGES := build-essential cmake ninja-build pkg-config \
+  libopencv-dev opencv-doc libeigen3-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev \
+  libgtest-dev googletest libbenchmark-dev libgpiod-dev libcamera-dev \
+  python3-venv python3-dev \
+  g++-aarch64-linux-gnu qemu-user libgtest-dev:arm64 libtomlplusplus-dev:arm64
+SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
+
+PYTHON3 ?= python3
+VENV := .venv
+VENV_PY := $(VENV)/bin/python
+# Touched after `pip install -e host[test]`; re-install only when host/pyproject.toml is newer.
+VENV_STAMP := $(VENV)/.fuzzystereo-host-installed
+PYPROJECT := $(wildcard host/pyproject.toml)
+
+.PHONY: deps deps-apt deps-python
+deps: deps-apt deps-python
+
+deps-apt:
+	@missing=""; native=$$(dpkg --print-architecture); \
+	for p in $(APT_PACKAGES); do \
+	  case "$$p" in *:*) name="$${p%%:*}"; archs="$${p#*:}";; *) name="$$p"; archs="$$native|all";; esac; \
+	  status=$$(dpkg-query -W -f='$${Status} $${Architecture}\n' "$$name" 2>/dev/null || true); \
+	  grep -qE "^install ok installed ($$archs)$$" <<<"$$status" || missing="$$missing $$p"; \
+	done; \
+	if [ -z "$$missing" ]; then echo "deps: all apt packages present"; exit 0; fi; \
+	echo "deps: installing:$$missing"; \
+	foreign=" $$(dpkg --print-foreign-architectures | tr '\n' ' ') "; \
+	if [[ "$$missing" == *:arm64* && "$$foreign" != *" arm64 "* ]]; then \
+	  $(SUDO) dpkg --add-architecture arm64; \
+	fi; \
+	$(SUDO) apt-get update; \
+	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends $$missing
+
+deps-python: $(if $(PYPROJECT),$(VENV_STAMP),$(VENV_PY))
+
+$(VENV_PY): | deps-apt
+	$(PYTHON3) -m venv $(VENV)
+
+$(VENV_STAMP): $(PYPROJECT) | $(VENV_PY)
+	$(VENV_PY) -m pip install --disable-pip-version-check -e 'host[test]'
+	touch $@
+
+# ---- build ---------------------------------------------------------------------------------------
+.PHONY: build build-aarch64 build-asan
+build:
+	cmake --preset default
+	cmake --build --preset default -j $(NPROC)
+
+build-aarch64:
+	cmake --preset aarch64
+	cmake --build --preset aarch64 -j $(NPROC)
+
+build-asan:
+	cmake --preset asan
+	cmake --build --preset asan -j $(NPROC)
+
+# ---- tests ---------------------------------------------------------------------------------------
+.PHONY: test test-native test-python test-aarch64 test-asan
+# Every stage runs even after a failure, so one CI run reports everything; the exit code is
+# non-zero if any stage failed.
+test: deps
+	@failed=""; \
+	for stage in test-native test-python test-aarch64; do \
+	  echo "==== $$stage"; \
+	  $(MAKE) $$stage || failed="$$failed $$stage"; \
+	done; \
+	if [ -n "$$failed" ]; then echo "==== FAILED:$$failed"; exit 1; fi; \
+	echo "==== all test stages passed"
+
+test-native: build
+	ctest --preset default -j $(NPROC)
+
+# The venv's python, so the suite uses exactly the host package installed by `make deps`.
+test-python:
+	@if ! ls tests/python/test_*.py >/dev/null 2>&1; then echo "no tests in tests/python"; exit 0; fi; \
+	if [ ! -x $(VENV_PY) ]; then echo "$(VENV_PY) missing: run 'make deps'"; exit 1; fi; \
+	$(VENV_PY) -m pytest tests/python -q -rs
+
+# Unit tests cross-compiled for aarch64, run under qemu-aarch64 (CMAKE_CROSSCOMPILING_EMULATOR).
+test-aarch64: build-aarch64
+	ctest --preset aarch64 -j $(NPROC)
+
+test-asan: deps build-asan
+	ctest --preset asan -j $(NPROC)
+
+# ---- demo ----------------------------------------------------------------------------------------
+# OpenCV's sample pair (opencv-doc). Debian may ship some of these files gzipped: those are
+# unpacked to out/demo/input first.
+DEMO_DATA ?= /usr/share/doc/opencv-doc/examples/data
+DEMO_OUT := out/demo
+
+.PHONY: demo
+demo: deps build
+	@mkdir -p $(DEMO_OUT); \
+	demo_file() { \
+	  if [ -f "$(DEMO_DATA)/$$1" ]; then echo "$(DEMO_DATA)/$$1"; \
+	  elif [ -f "$(DEMO_DATA)/$$1.gz" ]; then \
+	    mkdir -p $(DEMO_OUT)/input; gunzip -c "$(DEMO_DATA)/$$1.gz" > "$(DEMO_OUT)/input/$$1"; \
+	    echo "$(DEMO_OUT)/input/$$1"; \
+	  else echo "demo: $(DEMO_DATA)/$$1 not found (apt package opencv-doc)" >&2; exit 1; fi; \
+	}; \
+	left=$$(demo_file aloeL.jpg); right=$$(demo_file aloeR.jpg); gt=$$(demo_file aloeGT.png); \
+	set -x; \
+	build/default/fuzzystereo match --left "$$left" --right "$$right" --gt "$$gt" \
+	  --max-disparity 64 --out $(DEMO_OUT)
+
+# ---- housekeeping --------------------------------------------------------------------------------
+.PHONY: clean distclean
+clean:
+	rm -rf build out
+
+distclean: clean
+	rm -rf $(VENV)
