@@ -20,7 +20,7 @@ from fuzzyctl import compare as cmp
 from fuzzyctl import dump as dm
 from fuzzyctl.cli import main
 from fuzzyctl.errors import FatalError
-from synthetic import shifted_pair, small_config, two_plane_pair
+from synthetic import two_plane_pair
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,9 @@ def pair_files(tmp_path_factory):
     cv2.imwrite(str(d / "left.png"), left)
     cv2.imwrite(str(d / "right.png"), right)
     cfg = d / "small.toml"
-    cfg.write_text("[cost]\nmax_disparity = 10\n")
+    # integer disparities: the reference's float maps survive the dump's Q4 exactly, so the
+    # reference compared with its own dump agrees everywhere (see test_subpixel_self_compare)
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n")
     return d / "left.png", d / "right.png", cfg
 
 
@@ -84,6 +86,23 @@ def test_compare_reference_with_itself_agrees_everywhere(ref_run, tmp_path, caps
         if m.unit == "%" and "valid" not in m.name:
             assert m.value == pytest.approx(100.0), m.name
     assert c.metric("fis_score_abs_error_max").value <= 1 / 65536
+
+
+def test_subpixel_self_compare(pair_files, tmp_path):
+    # with sub-pixel disparities the dump rounds the reference to Q4: end-to-end metrics still
+    # agree; the stage-isolated ones (which re-run eq. 13-15 on the Q4 maps) only nearly
+    left, right, _ = pair_files
+    cfg = tmp_path / "sub.toml"
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = true\n")
+    out = tmp_path / "ref"
+    assert main(["reference", "match", "--left", str(left), "--right", str(right), "--config", str(cfg), "--out", str(out)]) == 0
+    d = dm.read_dump(out)
+    sub = dm.q4_to_disp(d["seg_left"][:, dm.SEG_DISP_Q4]) - d["seg_left"][:, dm.SEG_DISP]
+    assert np.abs(sub).max() <= 0.5 and np.any(sub != 0)
+    c = cmp.compare_run(out)
+    for m in c.metrics:
+        if m.unit == "%" and "valid" not in m.name:
+            assert m.value >= (99.0 if "isolated" in m.name else 100.0 - 1e-9), m.name
 
 
 def test_report_is_self_contained(ref_run, tmp_path):
@@ -180,7 +199,7 @@ def test_fault_injection_is_caught(firmware_bin, pair_files, tmp_path, capsys):
     # testing.inject_shift = 1 makes the firmware's cost stage look one pixel off
     left, right, _ = pair_files
     cfg = tmp_path / "inject.toml"
-    cfg.write_text("[cost]\nmax_disparity = 10\n\n[testing]\ninject_shift = 1\n")
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n\n[testing]\ninject_shift = 1\n")
     run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
     assert main(["compare", str(run)]) == 1
     out = capsys.readouterr()

@@ -32,12 +32,14 @@ def test_schema_entries_are_well_formed():
             assert spec.doc, f"{spec.key} has no doc"
 
 
-def test_load_defaults():
+def test_load_defaults(common_dir):
+    with open(common_dir / "config" / "default.toml", "rb") as f:
+        doc = tomllib.load(f)
     cfg = cfgmod.load_config()
-    assert cfg.cost.max_disparity == 64
-    assert cfg.cost.alpha == 0.5 and isinstance(cfg.cost.alpha, float)
-    assert cfg.esr.enabled is True
-    assert cfg.get("esr.window") == 9
+    assert cfg.cost.max_disparity == doc["cost"]["max_disparity"]
+    assert cfg.cost.alpha == doc["cost"]["alpha"] and isinstance(cfg.cost.alpha, float)
+    assert cfg.esr.enabled is doc["esr"]["enabled"]
+    assert cfg.get("esr.window") == doc["esr"]["window"]
 
 
 def test_overlay_and_int_accepted_for_float(tmp_path):

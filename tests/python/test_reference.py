@@ -275,17 +275,47 @@ def test_label_agreement():
 # ---- the whole pipeline --------------------------------------------------------------------------
 
 
+def _integer_maps(r):
+    return (wta.paint_segments(r.labels_left, r.dec_left.disparity), wta.paint_segments(r.labels_right, r.dec_right.disparity))
+
+
 @pytest.mark.parametrize("d_true", [0, 3, 7])
 def test_recovers_a_known_shift(fis, d_true):
     left, right = shifted_pair(48, 64, d_true, seed=d_true)
     r = match(left, right, small_config(), fis)
     # textured plane: every segment away from the left border (where partners are clamped) wins d
-    inner = r.disp_left_wta[:, d_true + 8 :]
-    assert np.mean(inner == d_true) > 0.97
-    assert np.mean(r.disp_right_wta[:, : -(d_true + 8)] == d_true) > 0.97
+    int_l, int_r = _integer_maps(r)
+    assert np.mean(int_l[:, d_true + 8 :] == d_true) > 0.97
+    assert np.mean(int_r[:, : -(d_true + 8)] == d_true) > 0.97
+    # the sub-pixel parabola stays within half a pixel, and near d for a true integer shift
+    assert np.all(np.abs(r.disp_left_wta - int_l) <= 0.5)
+    assert np.nanmean(np.abs(r.disp_left_wta[:, d_true + 8 :] - d_true)) < 0.2
     final = r.disp_final[:, d_true + 8 :]
     assert np.nanmean(np.abs(final - d_true) <= 0.5) > 0.97
     assert np.mean(~np.isnan(final)) > 0.9
+
+
+def test_integer_mode_paints_integers(fis):
+    left, right = shifted_pair(32, 48, 4, seed=2)
+    r = match(left, right, small_config(cost__subpixel=False), fis)
+    int_l, _ = _integer_maps(r)
+    np.testing.assert_array_equal(r.disp_left_wta, int_l)
+
+
+def test_subpixel_parabola():
+    nan = np.nan
+    scores = np.array(
+        [
+            [0.2, 0.6, 0.5, 0.1],  # winner 1: vertex (0.5 - 0.2) / (2 (1.2 - 0.7)) = 0.3
+            [0.5, 0.6, 0.2, 0.1],  # winner 1: (0.2 - 0.5) / (2 * 0.5) = -0.3
+            [0.6, 0.5, 0.2, 0.1],  # winner 0: no left neighbour -> 0
+            [nan, 0.6, 0.5, 0.1],  # d - 1 not a candidate -> 0
+            [0.1, 0.2, 0.3, 0.9],  # winner D - 1 -> 0
+            [0.59, 0.6, 0.0, 0.0],  # nearly flat to the left: (0 - 0.59) / (2 * 0.61), near -1/2
+        ]
+    )
+    winner = np.array([1, 1, 0, 1, 3, 1])
+    np.testing.assert_allclose(wta.subpixel_offset(scores, winner), [0.3, -0.3, 0, 0, 0, -0.59 / 1.22], atol=1e-12)
 
 
 def test_recovers_two_planes_with_given_labels(fis):
@@ -293,8 +323,8 @@ def test_recovers_two_planes_with_given_labels(fis):
     labels = grid_labels(48, 72, 8)  # segment boundaries on the plane boundary (row 24)
     r = match(left, right, small_config(), fis, labels, labels)
     assert r.labels_given
-    ok = np.abs(r.disp_left_wta - gt) == 0
-    assert np.mean(ok[:, 16:]) > 0.97
+    int_l, _ = _integer_maps(r)
+    assert np.mean((int_l == gt)[:, 16:]) > 0.97
     np.testing.assert_array_equal(r.labels_left, labels)
 
 
@@ -334,3 +364,22 @@ def test_bad_inputs_are_fatal(fis):
         match(left, right, small_config(), fis, np.zeros((3, 3), np.int32), None)
     with pytest.raises(FatalError, match="dense"):
         match(left, right, small_config(), fis, np.full((16, 20), 2, np.int32), None)
+
+
+def test_partner_of_a_subpixel_disparity_is_rounded_half_up():
+    # x - round(d) (the firmware's partner_x): x = 3, d = 2.5 -> partner 0; x = 4, d = 2.4375 -> 2
+    left = np.array([[np.nan, np.nan, np.nan, 2.5, 2.4375]])
+    right = np.array([[2.0, 3.5, 9.0, 9.0, 9.0]])
+    out, mask = lrcheck.left_right_check(left, right, 1)
+    np.testing.assert_array_equal(mask, [[False, False, False, True, False]])
+    right2 = np.array([[9.0, 9.0, 3.4375, 9.0, 9.0]])
+    _, mask2 = lrcheck.left_right_check(left, right2, 1)
+    np.testing.assert_array_equal(mask2, [[False, False, False, False, True]])
+    assert list(lrcheck.round_half_up(np.array([0.5, 1.49, 2.5, 3.0]))) == [1, 1, 3, 3]
+
+
+def test_block_entropy_bins_are_rounded_disparities():
+    d = np.array([[1.4, 1.6, 2.4]])  # bins 1, 2, 2 -> entropy of (1/3, 2/3)
+    E = esr.block_entropy(d, 3, 16)
+    p = np.array([1 / 3, 2 / 3])
+    assert E[0, 1] == pytest.approx(float(-(p * np.log2(p)).sum()))

@@ -29,6 +29,16 @@ inline int resolve_threads(int requested) {
 #endif
 }
 
+// Sets the thread count of the OpenMP regions that the calling thread starts from now on
+// (a per-thread setting in OpenMP, not a process global).
+inline void use_threads(int requested) {
+#if defined(FS_HAVE_OPENMP)
+  omp_set_num_threads(resolve_threads(requested));
+#else
+  (void)requested;
+#endif
+}
+
 // floor(sqrt(v)) for v < 2^62, exact.
 inline std::uint64_t isqrt64(std::uint64_t v) {
   auto r = static_cast<std::uint64_t>(std::sqrt(static_cast<double>(v)));

@@ -57,6 +57,7 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
     throw std::invalid_argument("Matcher: left and right images must be non-empty and of equal size");
   const MatcherParams& p = params_;
   const int threads = p.runtime.threads;
+  detail::use_threads(threads);
   MatchResult r;
   StageClock clock(r.timings);
 

@@ -18,8 +18,10 @@ from rich.table import Table
 from . import __version__
 from .errors import FatalError
 
-console = Console(highlight=False)
-err_console = Console(stderr=True, highlight=False)
+# Rich wraps at 80 columns when not on a terminal (pipes, CI logs); tables of metric names need more.
+_WIDTH = None if sys.stdout.isatty() else 120
+console = Console(highlight=False, width=_WIDTH)
+err_console = Console(stderr=True, highlight=False, width=_WIDTH)
 
 
 class _State:

@@ -31,7 +31,6 @@ from .reference import STAGES, ReferenceResult, match
 from .reference.esr import entropy_selective_refinement
 from .reference.lrcheck import left_right_check
 from .reference.segmentation import label_agreement
-from .reference.wta import paint_segments
 
 
 #: config sections the reference does not model (they only alter the firmware)
@@ -140,6 +139,8 @@ for _side in ("left", "right"):
     _doc(f"segmentation_agreement_{_side}_pct", "segmentation", "%", f"{_side} labels: pixels in the majority counterpart segment (symmetrised)")
 for _side in ("left", "right"):
     _doc(f"seg_winner_agreement_{_side}_pct", "wta", "%", f"{_side} segments with the same WTA disparity")
+_doc("seg_subpixel_abs_error_max", "wta", "px", "max |painted disparity| difference (sub-pixel, Q4) of segments with the same winner")
+_doc("seg_subpixel_abs_error_mean", "wta", "px", "mean |painted disparity| difference (sub-pixel, Q4) of segments with the same winner")
 _doc("fis_score_abs_error_max", "wta", "", "max |FIS score| difference, segments with the same winner")
 _doc("fis_score_abs_error_mean", "wta", "", "mean |FIS score| difference, segments with the same winner")
 _doc("dc1_abs_error_max", "wta", "", "max |Data Cost 1| difference of the winners (same winner)")
@@ -187,7 +188,7 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
             values[f"seg_winner_agreement_{side}_pct"] = 100.0 * float(np.mean(fw_disp == getattr(r, f"dec_{side}").disparity))
 
     # FIS score and data costs of segments with the same winner (both sides pooled)
-    errs: dict[str, list[np.ndarray]] = {"score": [], "dc1": [], "dc2": []}
+    errs: dict[str, list[np.ndarray]] = {"score": [], "dc1": [], "dc2": [], "sub": []}
     for side in ("left", "right"):
         if values[f"seg_winner_agreement_{side}_pct"] is None:
             continue
@@ -196,11 +197,14 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
         same = seg[:, dumpmod.SEG_DISP] == dec.disparity
         for key, col in (("score", dumpmod.SEG_SCORE), ("dc1", dumpmod.SEG_DC1), ("dc2", dumpmod.SEG_DC2)):
             errs[key].append(np.abs(dumpmod.from_q16(seg[same, col]) - getattr(dec, key)[same]))
+        ref_q4 = dumpmod.disp_to_q4(dec.disparity_sub).astype(np.int64)
+        errs["sub"].append(np.abs(seg[same, dumpmod.SEG_DISP_Q4] - ref_q4[same]) / dumpmod.DISP_SCALE)
     pooled = {k: np.concatenate(v) if v else np.zeros(0) for k, v in errs.items()}
-    for key, name in (("score", "fis_score_abs_error"), ("dc1", "dc1_abs_error"), ("dc2", "dc2_abs_error")):
+    for key, name in (("score", "fis_score_abs_error"), ("dc1", "dc1_abs_error"), ("dc2", "dc2_abs_error"),
+                      ("sub", "seg_subpixel_abs_error")):
         has = pooled[key].size > 0
         values[f"{name}_max"] = float(pooled[key].max()) if has else None
-        if key == "score":
+        if f"{name}_mean" in METRIC_DOCS:
             values[f"{name}_mean"] = float(pooled[key].mean()) if has else None
 
     maps = {  # the reference in the dump's Q4, so "within 0 px" means the same dump value
@@ -216,7 +220,9 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
     values["esr_replaced_agreement_pct"] = 100.0 * float(np.mean((d["esr_replaced"] != 0) == r.esr_replaced))
     # stage-isolated
     painted = [
-        dumpmod.disp_to_q4(paint_segments(d[f"labels_{side}"], d[f"seg_{side}"][:, dumpmod.SEG_DISP]))
+        np.where(d[f"seg_{side}"][:, dumpmod.SEG_DISP_Q4] < 0, dumpmod.INVALID_DISP, d[f"seg_{side}"][:, dumpmod.SEG_DISP_Q4])[
+            d[f"labels_{side}"]
+        ]
         == d[f"disp_{side}_wta"]
         for side in ("left", "right")
     ]

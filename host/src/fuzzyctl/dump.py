@@ -29,7 +29,7 @@ DISP_SCALE = 1 << DISP_SHIFT  # Q4
 Q16_ONE = 1 << 16
 INVALID_DISP = -1
 
-#: file -> (dtype, shape kind): "hw" = (H, W), "seg" = (n, 4)
+#: file -> (dtype, shape kind): "hw" = (H, W), "seg" = (n, SEG_COLUMNS)
 ARRAYS: dict[str, tuple[np.dtype, str]] = {
     "labels_left": (np.dtype(np.int32), "hw"),
     "labels_right": (np.dtype(np.int32), "hw"),
@@ -42,8 +42,10 @@ ARRAYS: dict[str, tuple[np.dtype, str]] = {
     "esr_replaced": (np.dtype(np.uint8), "hw"),
     "disp_final": (np.dtype(np.int16), "hw"),
 }
-#: columns of seg_*.npy
-SEG_DISP, SEG_SCORE, SEG_DC1, SEG_DC2 = range(4)
+#: columns of seg_*.npy: integer winner [px] (-1 = none), FIS score Q16, Data Cost 1 Q16,
+#: Data Cost 2 Q16, painted disparity Q4 after the sub-pixel parabola (-1 = none)
+SEG_DISP, SEG_SCORE, SEG_DC1, SEG_DC2, SEG_DISP_Q4 = range(5)
+SEG_COLUMNS = 5
 
 
 # ---- fixed-point conversions ------------------------------------------------------------------
@@ -172,8 +174,12 @@ def read_dump(run_dir: str | Path, arrays: bool = True) -> Dump:
             raise FatalError(f"dump file {path} has dtype {a.dtype}, expected {dtype}")
         if kind == "hw" and a.shape != shape:
             raise FatalError(f"dump file {path} has shape {a.shape}, expected {shape} (height, width)")
-        if kind == "seg" and (a.ndim != 2 or a.shape[1] != 4):
-            raise FatalError(f"dump file {path} has shape {a.shape}, expected (segments, 4)")
+        if kind == "seg" and a.ndim == 2 and a.shape[1] == 4:
+            # dumps written before the sub-pixel column: the painted disparity is 16 * winner
+            painted = np.where(a[:, SEG_DISP] < 0, INVALID_DISP, a[:, SEG_DISP] * DISP_SCALE)
+            a = np.concatenate([a, painted[:, None].astype(np.int32)], axis=1)
+        if kind == "seg" and (a.ndim != 2 or a.shape[1] != SEG_COLUMNS):
+            raise FatalError(f"dump file {path} has shape {a.shape}, expected (segments, {SEG_COLUMNS})")
         dump.arrays[name] = a
     for side in ("left", "right"):
         labels, seg = dump.arrays[f"labels_{side}"], dump.arrays[f"seg_{side}"]
@@ -202,9 +208,9 @@ def read_labels(dump_dir: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _seg_table(dec) -> np.ndarray:
-    return np.stack(
-        [np.asarray(dec.disparity, dtype=np.int64), to_q16(dec.score), to_q16(dec.dc1), to_q16(dec.dc2)], axis=1
-    ).astype(np.int32)
+    columns = [np.asarray(dec.disparity, dtype=np.int64), to_q16(dec.score), to_q16(dec.dc1), to_q16(dec.dc2),
+               disp_to_q4(dec.disparity_sub)]
+    return np.stack(columns, axis=1).astype(np.int32)
 
 
 def write_dump(out_dir: str | Path, result, meta_extra: dict[str, Any]) -> Path:

@@ -18,7 +18,7 @@ TEST(Config, DefaultsLoadAndMatchTheStruct) {
   const MatcherParams p = load_matcher_config("");
   EXPECT_EQ(p.seg.region_size, 8);
   EXPECT_EQ(p.cost.max_disparity, 64);
-  EXPECT_DOUBLE_EQ(p.cost.alpha, 0.5);
+  EXPECT_DOUBLE_EQ(p.cost.alpha, 0.2);
   EXPECT_TRUE(p.esr.enabled);
   EXPECT_EQ(p.cost.inject_shift, 0);
 }

@@ -50,7 +50,6 @@ SegmentCosts reference_costs(const ImageU8& ref, const ImageU8& other, const Ima
     std::int64_t sl = 0, sll = 0;
     for (auto [x, y] : px) { sl += ref.at(x, y); sll += ref.at(x, y) * ref.at(x, y); }
     const std::int64_t varl = n * sll - sl * sl;
-    const std::uint64_t sq_varl = varl > 0 ? isqrt(std::uint64_t(varl)) : 0;
     for (int d = 0; d < D; ++d) {
       std::int64_t sr = 0, srr = 0, slr = 0, g = 0;
       for (auto [x, y] : px) {
@@ -62,16 +61,16 @@ SegmentCosts reference_costs(const ImageU8& ref, const ImageU8& other, const Ima
       gsad[std::size_t(d)] = g;
       const std::int64_t num0 = n * slr - sl * sr, varr = n * srr - sr * sr;
       std::uint32_t ncc = 0;
-      if (num0 > 0 && varr > 0 && sq_varl > 0) {
-        std::uint64_t num = std::uint64_t(num0), den = sq_varl * isqrt(std::uint64_t(varr));
-        while (num >= (1ull << 46)) { num >>= 1; den >>= 1; }
-        if (den) ncc = std::uint32_t(std::min<std::uint64_t>((num << 16) / den, 65536));
+      if (num0 > 0 && varr > 0 && varl > 0) {
+        const double q = double(num0) / std::sqrt(double(varl) * double(varr));
+        ncc = q >= 1.0 ? 65536u : std::uint32_t(q * 65536.0 + 0.5);
       }
       c.ncc[off + std::size_t(d)] = ncc;
     }
     const std::int64_t gmax = *std::max_element(gsad.begin(), gsad.end());
     for (int d = 0; d < D; ++d)
-      c.igsad[off + std::size_t(d)] = gmax > 0 ? std::uint32_t(65536 - (gsad[std::size_t(d)] << 16) / gmax) : 65536u;
+      c.igsad[off + std::size_t(d)] =
+          gmax > 0 ? std::uint32_t(65536 - std::int64_t(double(gsad[std::size_t(d)]) * (65536.0 / double(gmax)))) : 65536u;
     std::vector<int> order(static_cast<std::size_t>(D));
     std::iota(order.begin(), order.end(), 0);
     const int K = (p.nmi_candidates <= 0 || p.nmi_candidates >= D) ? D : p.nmi_candidates;

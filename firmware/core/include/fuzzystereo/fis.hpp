@@ -55,12 +55,30 @@ class FisLut {
 
   int size() const { return size_; }
   // Inputs in Q16 [0, kQ16One]; output Q16. Bilinear between nodes.
-  std::uint32_t lookup(std::uint32_t a_q16, std::uint32_t b_q16) const;
+  inline std::uint32_t lookup(std::uint32_t a_q16, std::uint32_t b_q16) const;
   const std::vector<std::uint32_t>& table() const { return table_; }
 
  private:
   int size_ = 0;
   std::vector<std::uint32_t> table_;  // row-major [a][b]
 };
+
+// Bilinear read. Node (i, j) sits at (i/(N-1), j/(N-1)). Position a*(N-1) is Q16; the fractional
+// parts weight the four nodes in Q16, the 64-bit sum (<= 2^50) is rounded back to Q16.
+inline std::uint32_t FisLut::lookup(std::uint32_t a_q16, std::uint32_t b_q16) const {
+  constexpr std::uint64_t one = 1u << 16;
+  const std::uint64_t n1 = static_cast<std::uint64_t>(size_ - 1);
+  const std::uint64_t pa = (a_q16 < one ? a_q16 : one) * n1;
+  const std::uint64_t pb = (b_q16 < one ? b_q16 : one) * n1;
+  std::uint64_t ia = pa >> 16, ib = pb >> 16;
+  std::uint64_t fa = pa & 0xFFFF, fb = pb & 0xFFFF;
+  if (ia >= n1) { ia = n1 - 1; fa = one; }
+  if (ib >= n1) { ib = n1 - 1; fb = one; }
+  const std::uint32_t* r0 = table_.data() + ia * static_cast<std::uint64_t>(size_);
+  const std::uint32_t* r1 = r0 + size_;
+  const std::uint64_t t00 = r0[ib], t01 = r0[ib + 1], t10 = r1[ib], t11 = r1[ib + 1];
+  const std::uint64_t acc = (t00 * (one - fb) + t01 * fb) * (one - fa) + (t10 * (one - fb) + t11 * fb) * fa;  // Q48
+  return static_cast<std::uint32_t>((acc + (std::uint64_t(1) << 31)) >> 32);
+}
 
 }  // namespace fs

@@ -14,7 +14,7 @@ struct SegmentationParams {
 
 struct CostParams {
   int max_disparity = 64;   // D [px]; disparities 0 .. D-1
-  double alpha = 0.5;       // eq. (9)
+  double alpha = 0.2;       // eq. (9)
   int nmi_bins = 16;        // eq. (2)-(4)
   int nmi_candidates = 8;   // 0 = exhaustive
   bool subpixel = true;     // parabola fit on the FIS scores around the winner

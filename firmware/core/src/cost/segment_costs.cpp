@@ -14,9 +14,8 @@
 //   sum l, sum l^2, sum r, sum r^2     int64       (<= n * 65025)
 //   sum l*r, sum |gl - gr| per d       int32 lanes, flushed into int64 every kFlushPixels pixels:
 //                                      kFlushPixels * 65025 < 2^31
-//   NCC numerator/denominator          int64; num = n*Slr - Sl*Sr <= n^2 * 65025 < 2^63 for
-//                                      n < 2^24; shifted right together until num < 2^46 so that
-//                                      (num << 16) / den fits in int64 -> NCC in Q16
+//   NCC numerator and variances        int64, exact: n*Slr <= n^2 * 65025 < 2^63 for n < 2^24;
+//                                      normalised once per (segment, d) in double -> Q16
 //   entropies                          Q16 bits from the n*log2(n) table (uint64)
 //   NMI, IGSAD                         Q16 in [0, 1]
 #include <algorithm>
@@ -87,19 +86,21 @@ void accumulate_pixel(std::int32_t l, std::int32_t gl, const std::int32_t* __res
   }
 }
 
-// eq. (1): NCC in Q16 from integer sums, clamped to [0, 1] (Data Cost 1, eq. 8).
-std::uint32_t ncc_q16(std::int64_t n, std::int64_t sl, std::int64_t sll, std::int64_t sr, std::int64_t srr,
-                      std::int64_t slr, std::uint64_t sqrt_varl) {
-  const std::int64_t num0 = n * slr - sl * sr;
-  const std::int64_t varr = n * srr - sr * sr;
-  (void)sll;
-  if (num0 <= 0 || varr <= 0 || sqrt_varl == 0) return 0;
-  auto num = static_cast<std::uint64_t>(num0);
-  std::uint64_t den = sqrt_varl * detail::isqrt64(static_cast<std::uint64_t>(varr));
-  while (num >= (std::uint64_t(1) << 46)) { num >>= 1; den >>= 1; }
-  if (den == 0) return 0;
-  const std::uint64_t q = (num << kQ16Shift) / den;
-  return static_cast<std::uint32_t>(std::min<std::uint64_t>(q, kQ16One));
+// eq. (1): NCC in Q16 from the exact integer sums, clamped to [0, 1] (Data Cost 1, eq. 8).
+//   num = n*Slr - Sl*Sr, var_l = n*Sll - Sl^2, var_r = n*Srr - Sr^2 (int64, exact)
+//   NCC = num / sqrt(var_l * var_r), evaluated once per (segment, d) in IEEE double (sqrt and
+//   division are correctly rounded on x86-64 and AArch64 alike, so results are bit-identical) and
+//   rounded to Q16. The per-pixel work stays integer; this normalisation is 1/n of it.
+inline std::uint32_t ncc_q16(std::int64_t num, std::int64_t varr, double varl) {
+  if (num <= 0 || varr <= 0 || varl <= 0.0) return 0;
+  const double q = static_cast<double>(num) / std::sqrt(varl * static_cast<double>(varr));
+  return q >= 1.0 ? static_cast<std::uint32_t>(kQ16One) : static_cast<std::uint32_t>(q * kQ16One + 0.5);
+}
+
+// eq. (7): IGSAD = 1 - GSAD_d / max_d GSAD in Q16, 65536 - trunc(GSAD_d * (65536 / max)) with the
+// reciprocal in double (one division per segment instead of one per disparity).
+inline std::uint32_t igsad_q16(std::int64_t g, double inv_max_q16) {
+  return static_cast<std::uint32_t>(kQ16One - static_cast<std::int64_t>(static_cast<double>(g) * inv_max_q16));
 }
 
 }  // namespace
@@ -182,23 +183,25 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
 
       // eq. (1) NCC and eq. (6)-(7) IGSAD.
       const std::size_t off = std::size_t(s) * std::size_t(D);
-      const std::int64_t varl = n * sll - sl * sl;
-      const std::uint64_t sqrt_varl = varl > 0 ? detail::isqrt64(static_cast<std::uint64_t>(varl)) : 0;
+      const auto varl = static_cast<double>(n * sll - sl * sl);
       std::int64_t gmax = 0;
       for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg[std::size_t(d)]);
+      const double inv_gmax = gmax > 0 ? static_cast<double>(kQ16One) / static_cast<double>(gmax) : 0.0;
       for (int d = 0; d < D; ++d) {
-        c.ncc[off + std::size_t(d)] = ncc_q16(n, sl, sll, sr[std::size_t(d)], srr[std::size_t(d)], slr[std::size_t(d)], sqrt_varl);
-        c.igsad[off + std::size_t(d)] =
-            gmax > 0 ? static_cast<std::uint32_t>(kQ16One - (sg[std::size_t(d)] << kQ16Shift) / gmax) : kQ16One;
+        const std::size_t i = std::size_t(d);
+        c.ncc[off + i] = ncc_q16(n * slr[i] - sl * sr[i], n * srr[i] - sr[i] * sr[i], varl);
+        c.igsad[off + i] = igsad_q16(sg[i], inv_gmax);
       }
 
       // Candidates for NMI: the K best by FIS(NCC, IGSAD); ties -> smaller d.
       std::iota(order.begin(), order.end(), 0);
       if (K < D) {
         for (int d = 0; d < D; ++d) prescore[std::size_t(d)] = fis.lookup(c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)]);
-        std::partial_sort(order.begin(), order.begin() + K, order.end(), [&](int a, int b) {
+        const auto better = [&](int a, int b) {
           return prescore[std::size_t(a)] != prescore[std::size_t(b)] ? prescore[std::size_t(a)] > prescore[std::size_t(b)] : a < b;
-        });
+        };
+        std::nth_element(order.begin(), order.begin() + (K - 1), order.end(), better);
+        std::sort(order.begin(), order.begin() + K, better);
       }
 
       // eq. (2)-(4): NMI from the joint histogram; entropies kept incrementally with T[c].

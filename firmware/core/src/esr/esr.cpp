@@ -5,7 +5,9 @@
 // Sliding window: the block histogram moves along the row; each pixel entering or leaving changes
 // one bin c -> c +- 1 and the running sum by T[c +- 1] - T[c] (n*log2 n table), so a pixel costs
 // O(1) and an output pixel O(w) (one column in, one column out) instead of O(w^2) plus a pass over
-// all D bins for a recomputation.
+// all D bins for a recomputation. Vertical runs of equal disparity (the maps are piecewise
+// constant per segment) enter and leave as one step c -> c +- k, so in practice an output pixel
+// costs a few table reads. Rows are independent and run in parallel.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -19,19 +21,28 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   ImageI32 out(w, h, 0);
-  std::vector<std::uint32_t> hist(std::size_t(max_disparity) + 1);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
   for (int y = 0; y < h; ++y) {
     const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
-    std::fill(hist.begin(), hist.end(), 0);
+    std::vector<std::uint32_t> hist(std::size_t(max_disparity) + 1, 0);
     std::uint64_t n = 0, sum_t = 0;
+    // Adds (sign +1) or removes (-1) one column of the block. Disparity maps are piecewise
+    // constant, so equal vertical neighbours are moved as one run: c -> c + k in one table step.
     auto add_col = [&](int x, int sign) {
-      for (int yy = y0; yy <= y1; ++yy) {
+      int yy = y0;
+      while (yy <= y1) {
         const std::int16_t d = disp.at(x, yy);
+        int k = 1;
+        while (yy + k <= y1 && disp.at(x, yy + k) == d) ++k;
+        yy += k;
         if (d == kInvalidDisp) continue;
         const int b = std::min((d + kDispScale / 2) >> kDispShift, max_disparity);  // nearest integer px
         std::uint32_t& c = hist[std::size_t(b)];
-        if (sign > 0) { sum_t += T[c + 1] - T[c]; ++c; ++n; }
-        else          { sum_t -= T[c] - T[c - 1]; --c; --n; }
+        const auto uk = static_cast<std::uint32_t>(k);
+        if (sign > 0) { sum_t += T[c + uk] - T[c]; c += uk; n += uk; }
+        else          { sum_t -= T[c] - T[c - uk]; c -= uk; n -= uk; }
       }
     };
     for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);

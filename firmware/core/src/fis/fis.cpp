@@ -222,22 +222,4 @@ std::shared_ptr<const FisLut> FisLut::cached(const FisDefinition& def, int size)
   return slot;
 }
 
-// Bilinear read. Node (i, j) sits at (i/(N-1), j/(N-1)). Position a*(N-1) is Q16; the fractional
-// parts weight the four nodes in Q16, the 64-bit sum is rounded back to Q16.
-std::uint32_t FisLut::lookup(std::uint32_t a_q16, std::uint32_t b_q16) const {
-  const std::uint64_t n1 = static_cast<std::uint64_t>(size_ - 1);
-  const std::uint64_t pa = std::min<std::uint64_t>(a_q16, kQ16One) * n1;
-  const std::uint64_t pb = std::min<std::uint64_t>(b_q16, kQ16One) * n1;
-  std::uint64_t ia = pa >> kQ16Shift, ib = pb >> kQ16Shift;
-  std::uint64_t fa = pa & 0xFFFF, fb = pb & 0xFFFF;
-  if (ia >= n1) { ia = n1 - 1; fa = kQ16One; }
-  if (ib >= n1) { ib = n1 - 1; fb = kQ16One; }
-  const std::uint32_t* r0 = table_.data() + ia * std::uint64_t(size_);
-  const std::uint32_t* r1 = r0 + size_;
-  const std::uint64_t t00 = r0[ib], t01 = r0[ib + 1], t10 = r1[ib], t11 = r1[ib + 1];
-  const std::uint64_t wa1 = fa, wa0 = kQ16One - fa, wb1 = fb, wb0 = kQ16One - fb;
-  const std::uint64_t acc = (t00 * wb0 + t01 * wb1) * wa0 + (t10 * wb0 + t11 * wb1) * wa1;  // Q48
-  return static_cast<std::uint32_t>((acc + (std::uint64_t(1) << 31)) >> 32);
-}
-
 }  // namespace fs

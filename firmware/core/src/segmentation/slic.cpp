@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
 
 namespace fs {
 
@@ -20,6 +21,20 @@ namespace {
 struct Center {
   std::int64_t x, y, i;
 };
+
+// One row of one centre's search window: keep the closer centre per pixel (branch-free, SIMD).
+FS_TARGET_CLONES
+void assign_row(const std::uint8_t* __restrict r, std::uint32_t* __restrict dr, std::int32_t* __restrict lab, int x0,
+                int x1, std::int32_t ci, std::int32_t cx, std::uint32_t dy2, std::uint32_t s2, std::uint32_t mm,
+                std::int32_t k) {
+  for (int x = x0; x <= x1; ++x) {
+    const std::int32_t di = r[x] - ci, dx = x - cx;
+    const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
+    const bool closer = d < dr[x];
+    dr[x] = closer ? d : dr[x];
+    lab[x] = closer ? k : lab[x];
+  }
+}
 
 }  // namespace
 
@@ -97,17 +112,9 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
         const std::uint8_t* r = img.row(y);
         std::int32_t* lab = labels.row(y);
         std::uint32_t* dr = dist.data() + std::size_t(y) * std::size_t(w);
-        const auto dy2 = static_cast<std::uint32_t>((y - c.y) * (y - c.y));
-        const auto ci = static_cast<std::int32_t>(c.i), cx = static_cast<std::int32_t>(c.x);
-        const auto s2 = static_cast<std::uint32_t>(S2), mm = static_cast<std::uint32_t>(m2);
-        const auto kk = static_cast<std::int32_t>(k);
-        for (int x = x0; x <= x1; ++x) {
-          const std::int32_t di = r[x] - ci, dx = x - cx;
-          const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
-          const bool closer = d < dr[x];
-          dr[x] = closer ? d : dr[x];
-          lab[x] = closer ? kk : lab[x];
-        }
+        assign_row(r, dr, lab, x0, x1, static_cast<std::int32_t>(c.i), static_cast<std::int32_t>(c.x),
+                   static_cast<std::uint32_t>((y - c.y) * (y - c.y)), static_cast<std::uint32_t>(S2),
+                   static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
       }
     }
     // Update centres (integer rounded means). Unreached pixels (-1) keep no centre.

@@ -1,18 +1,20 @@
 """Entropy-based selective refinement (ESR), Section III-A, eq. (14)-(15).
 
-eq. (14): for every pixel, the Shannon entropy [bit] of the histogram of the integer disparities of
-the valid pixels in the w x w window centred on it (clipped at the image border; 0 when the window
+eq. (14): for every pixel, the Shannon entropy [bit] of the histogram of the disparities (rounded
+to the nearest integer px, halves up) of the valid pixels in the w x w window centred on it (clipped at the image border; 0 when the window
 has no valid pixel) — for the left-right checked left map (E_l) and the raw right WTA map (E_r) —
 and the mean disparity of those valid pixels (mean_l, mean_r).
 
 eq. (15): a valid left pixel with disparity d at (x, y) is compared with the right block at
-x_r = x - d; when 0 <= x_r < W and |E_l(x, y) - E_r(x_r, y)| > tau it is replaced by mean_l(x, y)
+x_r = x - round(d); when 0 <= x_r < W and |E_l(x, y) - E_r(x_r, y)| > tau it is replaced by mean_l(x, y)
 if E_l < E_r, else by mean_r(x_r, y). Invalid left pixels stay invalid.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .lrcheck import round_half_up
 
 
 def box_sum(a: np.ndarray, window: int) -> np.ndarray:
@@ -29,10 +31,9 @@ def box_sum(a: np.ndarray, window: int) -> np.ndarray:
 
 
 def block_entropy(disp: np.ndarray, window: int, max_disparity: int) -> np.ndarray:
-    """eq. (14): entropy [bit] of the integer disparities of the valid pixels in each window."""
+    """eq. (14): entropy [bit] of the (rounded) disparities of the valid pixels in each window."""
     valid = ~np.isnan(disp)
-    d = np.where(valid, np.floor(np.where(valid, disp, 0.0)), -1).astype(np.int64)
-    d = np.where(valid, np.minimum(d, max_disparity), -1)
+    d = np.where(valid, np.minimum(round_half_up(np.where(valid, disp, 0.0)), max_disparity), -1)
     n = box_sum(valid.astype(np.float64), window)
     sum_clogc = np.zeros(disp.shape)
     for v in np.unique(d[valid]):
@@ -65,7 +66,7 @@ def entropy_selective_refinement(
 
     valid = ~np.isnan(disp_lr)
     x = np.broadcast_to(np.arange(w), (h, w))
-    xr = x - np.floor(np.where(valid, disp_lr, 0.0)).astype(np.int64)
+    xr = x - round_half_up(np.where(valid, disp_lr, 0.0))
     inside = valid & (xr >= 0) & (xr < w)
     xr_c = np.clip(xr, 0, w - 1)
     E_r_at = np.take_along_axis(E_r, xr_c, axis=1)

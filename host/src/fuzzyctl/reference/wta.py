@@ -6,6 +6,10 @@ the highest FIS(NCC, IGSAD) — the FIS with Data Cost 2 replaced by IGSAD alone
 smaller d — and the WTA runs over those K; with K = 0 (or K >= D) it runs over every d.
 WTA ties go to the smaller d.
 
+With ``cost.subpixel``, a parabola through the scores at d-1, d, d+1 (when both neighbours took
+part in the WTA) moves the winner to its vertex, d + (s(d+1) - s(d-1)) / (2 (2 s(d) - s(d-1) - s(d+1))),
+by at most half a pixel.
+
 The FIS is scikit-fuzzy's (:class:`fuzzyctl.fis.Fis`): ``engine="skfuzzy"`` runs
 ``ControlSystemSimulation`` on every distinct input pair; ``engine="fast"`` (default) runs the
 vectorised twin of the same arithmetic, cross-checked against ``ControlSystemSimulation`` on a
@@ -27,6 +31,7 @@ ENGINES = ("fast", "skfuzzy")
 @dataclass
 class SegmentDecision:
     disparity: np.ndarray  # (n,) int, -1 = none
+    disparity_sub: np.ndarray  # (n,) float px with the sub-pixel offset, NaN = none
     score: np.ndarray  # (n,) FIS output of the winner
     dc1: np.ndarray  # (n,) the winner's inputs
     dc2: np.ndarray
@@ -63,7 +68,7 @@ def select_candidates(costs: SegmentCosts, fis: Fis, k: int, engine: str = "fast
 
 
 def fis_winner_take_all(
-    costs: SegmentCosts, fis: Fis, alpha: float, nmi_candidates: int, engine: str = "fast"
+    costs: SegmentCosts, fis: Fis, alpha: float, nmi_candidates: int, engine: str = "fast", subpixel: bool = False
 ) -> SegmentDecision:
     """argmax over the candidates of FIS(DC1, DC2), eq. (8)-(12); ties -> smaller d."""
     cand = np.sort(select_candidates(costs, fis, nmi_candidates, engine), axis=1)  # ascending d
@@ -73,13 +78,35 @@ def fis_winner_take_all(
     score = fis_scores(fis, dc1, dc2, engine)
     best = np.argmax(score, axis=1)  # first maximum = smallest d among equal scores
     r = np.arange(cand.shape[0])
+    winner = cand[r, best].astype(np.int64)
+    n, D = costs.ncc.shape
+    all_scores = np.full((n, D), np.nan)  # NaN = not a candidate
+    all_scores[rows, cand] = score
+    offset = subpixel_offset(all_scores, winner) if subpixel else np.zeros(n)
     return SegmentDecision(
-        disparity=cand[r, best].astype(np.int64),
+        disparity=winner,
+        disparity_sub=winner + offset,
         score=score[r, best],
         dc1=dc1[r, best],
         dc2=dc2[r, best],
         candidates=cand,
     )
+
+
+def subpixel_offset(scores: np.ndarray, winner: np.ndarray) -> np.ndarray:
+    """Parabola vertex offset [px] in [-1/2, 1/2] per segment; 0 where d-1 or d+1 was not scored
+    (outside [0, D) or not a candidate) or the three scores are not strictly concave."""
+    n, D = scores.shape
+    r = np.arange(n)
+    has = (winner > 0) & (winner < D - 1)
+    s0 = scores[r, winner]
+    sm = np.where(has, scores[r, np.clip(winner - 1, 0, D - 1)], np.nan)
+    sp = np.where(has, scores[r, np.clip(winner + 1, 0, D - 1)], np.nan)
+    curv = 2.0 * s0 - sm - sp  # > 0 at a strict maximum
+    ok = ~np.isnan(curv) & (curv > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        off = np.where(ok, (sp - sm) / (2.0 * np.where(ok, curv, 1.0)), 0.0)
+    return np.clip(off, -0.5, 0.5)
 
 
 def paint_segments(labels: np.ndarray, seg_disp: np.ndarray) -> np.ndarray:
