@@ -27,7 +27,7 @@ double StageTimings::total_ms() const {
 }
 
 Matcher::Matcher(const MatcherParams& params, const FisDefinition& fis)
-    : params_(params), lut_(FisLut::cached(fis, params.fis.lut_size)) {}
+    : params_(params), lut_(FisLut::cached(fis, params.fis.lut_size)), scratch_{make_cost_scratch(), make_cost_scratch()} {}
 
 MatchResult Matcher::match(const ImageU8& left, const ImageU8& right) const {
   return match_with_labels(left, right, nullptr, nullptr);
@@ -55,7 +55,10 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
                                        const ImageI32* labels_right) const {
   if (left.width != right.width || left.height != right.height || left.empty())
     throw std::invalid_argument("Matcher: left and right images must be non-empty and of equal size");
+  if (left.width > kMaxImageWidth || left.height > kMaxImageWidth)
+    throw std::invalid_argument("Matcher: images wider or taller than 32767 px are not supported");
   const MatcherParams& p = params_;
+  std::lock_guard<std::mutex> lock(scratch_mu_);
   const int threads = p.runtime.threads;
   detail::use_threads(threads);
   MatchResult r;
@@ -65,14 +68,28 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   const ImageU16 grad_r = gradient_magnitude(right);
   clock.lap(Stage::Gradient);
 
-  r.seg_left = labels_left ? segmentation_from_labels(*labels_left) : slic_segment(left, p.seg);
-  r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg);
+  // The two segmentations are independent: one thread each when there are two.
+  const int seg_threads = detail::resolve_threads(threads) >= 2 ? 2 : 1;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel sections num_threads(seg_threads)
+#endif
+  {
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    r.seg_left = labels_left ? segmentation_from_labels(*labels_left) : slic_segment(left, p.seg);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg);
+  }
+  (void)seg_threads;
   clock.lap(Stage::Segmentation);
 
   const SegmentCosts cost_l =                                                           // eq. (1)-(9)
-      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, threads);
+      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, threads, scratch_[0].get());
   const SegmentCosts cost_r =
-      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, threads);
+      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, threads, scratch_[1].get());
   clock.lap(Stage::Cost);
 
   r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA

@@ -35,6 +35,9 @@ inline constexpr int kDispShift = 4;
 inline constexpr int kDispScale = 1 << kDispShift;
 inline constexpr std::int16_t kInvalidDisp = -1;
 
+// Largest supported width/height: int16 Q4 disparities and the int32 cost lanes (docs/algorithm.md).
+inline constexpr int kMaxImageWidth = 32767;
+
 // Scores and normalised costs in [0, 1]: uint32/int32 in Q16 (1.0 == kQ16One).
 inline constexpr int kQ16Shift = 16;
 inline constexpr std::int32_t kQ16One = 1 << kQ16Shift;

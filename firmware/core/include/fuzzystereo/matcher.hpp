@@ -1,6 +1,8 @@
 // Public entry point of the fuzzystereo disparity pipeline (Section III up to and including ESR).
 #pragma once
 #include <array>
+#include <memory>
+#include <mutex>
 #include <string>
 
 #include "fuzzystereo/fis.hpp"
@@ -46,6 +48,10 @@ class Matcher {
  private:
   MatcherParams params_;
   std::shared_ptr<const FisLut> lut_;
+  // Per-frame scratch reused across frames (no page faults in steady state). match() holds the
+  // mutex, so one Matcher serves one frame at a time; use one Matcher per concurrent stream.
+  mutable std::mutex scratch_mu_;
+  std::shared_ptr<CostScratch> scratch_[2];
 };
 
 }  // namespace fs

@@ -3,6 +3,7 @@
 // reference in tests/cpp/. matcher.cpp chains them, one line per stage.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "fuzzystereo/fis.hpp"
@@ -50,12 +51,18 @@ struct SegmentCosts {
   std::vector<std::uint8_t> nmi_valid;
 };
 
+// Scratch memory of the cost stage (padded partner rows, ~(W + D) * H * 13 bytes). Reusing one
+// across frames keeps the per-frame path free of page faults; a null scratch allocates per call.
+struct CostScratch;
+std::shared_ptr<CostScratch> make_cost_scratch();
+
 // direction = +1: reference is the left image, its pixel x matches x - d in the other image.
 // direction = -1: reference is the right image, its pixel x matches x + d in the other image.
 // fis is used only to rank candidates for NMI (when nmi_candidates > 0).
 SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, const ImageU16& ref_grad,
                                    const ImageU16& other_grad, const Segmentation& seg, int direction,
-                                   const CostParams& p, const FisLut& fis, int threads);
+                                   const CostParams& p, const FisLut& fis, int threads,
+                                   CostScratch* scratch = nullptr);
 
 // ---- fis/ + wta/ ----------------------------------------------------------------------------
 struct SegmentDecision {

@@ -12,8 +12,9 @@
 //
 // Fixed-point formats and overflow bounds (n = segment pixels, any n < 2^24):
 //   sum l, sum l^2, sum r, sum r^2     int64       (<= n * 65025)
-//   sum l*r, sum |gl - gr| per d       int32 lanes, flushed into int64 every kFlushPixels pixels:
-//                                      kFlushPixels * 65025 < 2^31
+//   sum r, sum r^2, sum l*r, sum |gl - gr| per d
+//                                      int32 lanes, flushed into int64 before they hold more than
+//                                      kFlushPixels pixels: kFlushPixels * 65025 < 2^31
 //   NCC numerator and variances        int64, exact: n*Slr <= n^2 * 65025 < 2^63 for n < 2^24;
 //                                      normalised once per (segment, d) in double -> Q16
 //   entropies                          Q16 bits from the n*log2(n) table (uint64)
@@ -35,15 +36,15 @@ constexpr int kFlushPixels = 32768;  // 32768 * 65025 < 2^31
 // Padded partner rows of one image for one direction.
 struct PartnerRows {
   int stride = 0;                       // W + D - 1
-  std::vector<std::int32_t> val;        // O: grey value
-  std::vector<std::int32_t> grad;       // gradient magnitude
+  std::vector<std::int16_t> val;        // O: grey value
+  std::vector<std::int16_t> grad;       // gradient magnitude
   std::vector<std::uint8_t> bin;        // NMI bin of the grey value
-  std::vector<std::int64_t> pre, pre2;  // row prefix sums of O and O^2, stride + 1 per row
+  std::vector<std::int32_t> pre, pre2;  // row prefix sums of O and O^2, stride + 1 per row
+                                        // (<= (W + D) * 65025 < 2^31 for W + D <= 33000)
 };
 
-PartnerRows build_partner_rows(const ImageU8& other, const ImageU16& other_grad, int direction, int D, int bins) {
+void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& other_grad, int direction, int D, int bins) {
   const int w = other.width, h = other.height;
-  PartnerRows p;
   p.stride = w + D - 1;
   const std::size_t n = std::size_t(h) * std::size_t(p.stride);
   p.val.resize(n);
@@ -54,35 +55,44 @@ PartnerRows build_partner_rows(const ImageU8& other, const ImageU16& other_grad,
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* src = other.row(y);
     const std::uint16_t* gsrc = other_grad.row(y);
-    std::int32_t* v = p.val.data() + std::size_t(y) * std::size_t(p.stride);
-    std::int32_t* g = p.grad.data() + std::size_t(y) * std::size_t(p.stride);
+    std::int16_t* v = p.val.data() + std::size_t(y) * std::size_t(p.stride);
+    std::int16_t* g = p.grad.data() + std::size_t(y) * std::size_t(p.stride);
     std::uint8_t* b = p.bin.data() + std::size_t(y) * std::size_t(p.stride);
     for (int j = 0; j < p.stride; ++j) {
       // left reference: O[j] = other[W-1-j] (clamped at 0); right reference: O[j] = other[min(j, W-1)]
       const int x = direction > 0 ? std::max(0, w - 1 - j) : std::min(j, w - 1);
-      v[j] = src[x];
-      g[j] = gsrc[x];
+      v[j] = static_cast<std::int16_t>(src[x]);
+      g[j] = static_cast<std::int16_t>(gsrc[x]);
       b[j] = static_cast<std::uint8_t>((src[x] * bins) >> 8);
     }
-    std::int64_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.stride + 1);
-    std::int64_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.stride + 1);
+    std::int32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.stride + 1);
+    std::int32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.stride + 1);
     pr[0] = pr2[0] = 0;
     for (int j = 0; j < p.stride; ++j) {
       pr[j + 1] = pr[j] + v[j];
-      pr2[j + 1] = pr2[j] + std::int64_t(v[j]) * v[j];
+      pr2[j + 1] = pr2[j] + v[j] * v[j];
     }
   }
-  return p;
 }
 
 // The hot loop: for one reference pixel (l, gl), accumulate l*r and |gl - gr| over all d.
 FS_TARGET_CLONES
-void accumulate_pixel(std::int32_t l, std::int32_t gl, const std::int32_t* __restrict o,
-                      const std::int32_t* __restrict og, std::int32_t* __restrict slr,
+void accumulate_pixel(std::int32_t l, std::int32_t gl, const std::int16_t* __restrict o,
+                      const std::int16_t* __restrict og, std::int32_t* __restrict slr,
                       std::int32_t* __restrict sg, int D) {
   for (int d = 0; d < D; ++d) {
     slr[d] += l * o[d];
     sg[d] += std::abs(gl - og[d]);
+  }
+}
+
+// Partner-only sums of one run for all d, from the row prefix sums: O[lo + d .. hi + d).
+FS_TARGET_CLONES
+void accumulate_run(const std::int32_t* __restrict pre, const std::int32_t* __restrict pre2, int lo, int hi,
+                    std::int32_t* __restrict sr, std::int32_t* __restrict srr, int D) {
+  for (int d = 0; d < D; ++d) {
+    sr[d] += pre[hi + d] - pre[lo + d];
+    srr[d] += pre2[hi + d] - pre2[lo + d];
   }
 }
 
@@ -105,12 +115,20 @@ inline std::uint32_t igsad_q16(std::int64_t g, double inv_max_q16) {
 
 }  // namespace
 
+struct CostScratch {
+  PartnerRows rows;
+};
+
+std::shared_ptr<CostScratch> make_cost_scratch() { return std::make_shared<CostScratch>(); }
+
 SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, const ImageU16& ref_grad,
                                    const ImageU16& other_grad, const Segmentation& seg, int direction,
-                                   const CostParams& p, const FisLut& fis, int threads) {
+                                   const CostParams& p, const FisLut& fis, int threads, CostScratch* scratch) {
   const int w = ref.width, D = p.max_disparity, B = p.nmi_bins;
   const int shift = p.inject_shift;  // test-only fault injection; 0 in every real config
-  const PartnerRows pr = build_partner_rows(other, other_grad, direction, D + std::abs(shift), B);
+  CostScratch local;
+  PartnerRows& pr = (scratch ? scratch : &local)->rows;
+  build_partner_rows(pr, other, other_grad, direction, D + std::abs(shift), B);
   SegmentCosts c;
   c.segments = seg.count;
   c.disparities = D;
@@ -133,6 +151,7 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
   {
     (void)nt;
     std::vector<std::int32_t> slr32(static_cast<std::size_t>(D)), sg32(static_cast<std::size_t>(D));
+    std::vector<std::int32_t> sr32(static_cast<std::size_t>(D)), srr32(static_cast<std::size_t>(D));
     std::vector<std::int64_t> slr(static_cast<std::size_t>(D)), sg(static_cast<std::size_t>(D)), sr(static_cast<std::size_t>(D)), srr(static_cast<std::size_t>(D));
     std::vector<std::uint32_t> joint(static_cast<std::size_t>(B * B)), hy(static_cast<std::size_t>(B)), hx(static_cast<std::size_t>(B));
     std::vector<std::uint32_t> prescore(static_cast<std::size_t>(D));
@@ -146,40 +165,44 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
       std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
       std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
       std::fill(slr32.begin(), slr32.end(), 0); std::fill(sg32.begin(), sg32.end(), 0);
+      std::fill(sr32.begin(), sr32.end(), 0); std::fill(srr32.begin(), srr32.end(), 0);
+      const auto flush = [&] {
+        for (int d = 0; d < D; ++d) {
+          const std::size_t i = std::size_t(d);
+          slr[i] += slr32[i]; sg[i] += sg32[i]; sr[i] += sr32[i]; srr[i] += srr32[i];
+          slr32[i] = sg32[i] = sr32[i] = srr32[i] = 0;
+        }
+      };
       std::int64_t n = 0, sl = 0, sll = 0;
       int since_flush = 0;
       for (const Run* r = r0; r != r1; ++r) {
         const std::uint8_t* lrow = ref.row(r->y);
         const std::uint16_t* grow = ref_grad.row(r->y);
         const std::size_t ro = std::size_t(r->y) * std::size_t(pr.stride);
-        const std::int32_t* orow = pr.val.data() + ro;
-        const std::int32_t* ogrow = pr.grad.data() + ro;
+        const std::int16_t* orow = pr.val.data() + ro;
+        const std::int16_t* ogrow = pr.grad.data() + ro;
         // Partner-only sums from prefix sums: the run's partners at d are O[lo + d .. hi + d).
         const int lo = std::min(base_of(r->x0), base_of(r->x1 - 1));
         const int hi = std::max(base_of(r->x0), base_of(r->x1 - 1)) + 1;
-        const std::int64_t* pre = pr.pre.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
-        const std::int64_t* pre2 = pr.pre2.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
-        for (int d = 0; d < D; ++d) {
-          sr[std::size_t(d)] += pre[hi + d] - pre[lo + d];
-          srr[std::size_t(d)] += pre2[hi + d] - pre2[lo + d];
+        const std::int32_t* pre = pr.pre.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
+        const std::int32_t* pre2 = pr.pre2.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
+        const int len = r->x1 - r->x0;  // <= W <= kFlushPixels (checked by the Matcher)
+        if (since_flush + len > kFlushPixels) {
+          flush();
+          since_flush = 0;
         }
-        for (int x = r->x0; x < r->x1; ++x) {
+        since_flush += len;
+        accumulate_run(pre, pre2, lo, hi, sr32.data(), srr32.data(), D);
+        const int b0 = base_of(r->x0), step = direction > 0 ? -1 : 1;
+        for (int x = r->x0, b = b0; x < r->x1; ++x, b += step) {
           const std::int32_t l = lrow[x];
           sl += l;
-          sll += std::int64_t(l) * l;
-          const int b = base_of(x);
+          sll += l * l;
           accumulate_pixel(l, grow[x], orow + b, ogrow + b, slr32.data(), sg32.data(), D);
-          if (++since_flush == kFlushPixels) {
-            for (int d = 0; d < D; ++d) {
-              slr[std::size_t(d)] += slr32[std::size_t(d)]; sg[std::size_t(d)] += sg32[std::size_t(d)];
-              slr32[std::size_t(d)] = 0; sg32[std::size_t(d)] = 0;
-            }
-            since_flush = 0;
-          }
         }
-        n += r->x1 - r->x0;
+        n += len;
       }
-      for (int d = 0; d < D; ++d) { slr[std::size_t(d)] += slr32[std::size_t(d)]; sg[std::size_t(d)] += sg32[std::size_t(d)]; }
+      flush();
 
       // eq. (1) NCC and eq. (6)-(7) IGSAD.
       const std::size_t off = std::size_t(s) * std::size_t(D);
