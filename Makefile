@@ -78,12 +78,12 @@ build-asan:
 	cmake --build --preset asan -j $(NPROC)
 
 # ---- tests ---------------------------------------------------------------------------------------
-.PHONY: test test-native test-python test-aarch64 test-asan
+.PHONY: test test-native test-python test-aarch64 test-asan test-asan-core
 # Every stage runs even after a failure, so one CI run reports everything; the exit code is
 # non-zero if any stage failed.
 test: deps
 	@failed=""; \
-	for stage in test-native test-python test-aarch64; do \
+	for stage in test-native test-python test-aarch64 test-asan-core; do \
 	  echo "==== $$stage"; \
 	  $(MAKE) $$stage || failed="$$failed $$stage"; \
 	done; \
@@ -106,6 +106,13 @@ test-aarch64: build-aarch64
 test-asan: deps build-asan
 	ctest --preset asan -j $(NPROC)
 
+# Core unit tests under AddressSanitizer + UBSan (part of `make test`; the full asan preset is
+# `make test-asan`).
+test-asan-core:
+	cmake --preset asan
+	cmake --build --preset asan -j $(NPROC) --target fs_core_tests
+	build/asan/tests/cpp/fs_core_tests
+
 # ---- demo ----------------------------------------------------------------------------------------
 # OpenCV's sample pair (opencv-doc). Debian may ship some of these files gzipped: those are
 # unpacked to out/demo/input first.
@@ -125,7 +132,7 @@ demo: deps build
 	left=$$(demo_file aloeL.jpg); right=$$(demo_file aloeR.jpg); gt=$$(demo_file aloeGT.png); \
 	set -x; \
 	build/default/fuzzystereo match --left "$$left" --right "$$right" --gt "$$gt" \
-	  --max-disparity 64 --out $(DEMO_OUT)
+	  --downscale 3 --max-disparity 80 --out $(DEMO_OUT) --dump
 
 # ---- housekeeping --------------------------------------------------------------------------------
 .PHONY: clean distclean

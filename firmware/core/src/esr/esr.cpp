@@ -47,8 +47,8 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
     };
     for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);
     for (int x = 0; x < w; ++x) {
+      if (x - r - 1 >= 0) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
       if (x + r < w) add_col(x + r, +1);
-      if (x - r - 1 >= 0) add_col(x - r - 1, -1);
       out.at(x, y) = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
     }
   }
