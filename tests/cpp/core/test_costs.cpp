@@ -75,8 +75,8 @@ SegmentCosts reference_costs(const ImageU8& ref, const ImageU8& other, const Ima
     std::iota(order.begin(), order.end(), 0);
     const int K = (p.nmi_candidates <= 0 || p.nmi_candidates >= D) ? D : p.nmi_candidates;
     std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-      return fis.lookup(c.ncc[off + std::size_t(a)], c.igsad[off + std::size_t(a)]) >
-             fis.lookup(c.ncc[off + std::size_t(b)], c.igsad[off + std::size_t(b)]);
+      return fis.lookup_nearest(c.ncc[off + std::size_t(a)], c.igsad[off + std::size_t(a)]) >
+             fis.lookup_nearest(c.ncc[off + std::size_t(b)], c.igsad[off + std::size_t(b)]);
     });
     std::vector<std::uint32_t> hx(std::size_t(B), 0);
     for (auto [x, y] : px) ++hx[std::size_t(ref.at(x, y) * B / 256)];

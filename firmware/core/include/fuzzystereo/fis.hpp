@@ -5,6 +5,7 @@
 // (min AND, min implication, max aggregation, centroid) in double precision at every table node;
 // per segment the decision is a bilinear table read in fixed point.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -56,6 +57,13 @@ class FisLut {
   int size() const { return size_; }
   // Inputs in Q16 [0, kQ16One]; output Q16. Bilinear between nodes.
   inline std::uint32_t lookup(std::uint32_t a_q16, std::uint32_t b_q16) const;
+  // Value of the nearest node (no interpolation): a cheap ranking key.
+  std::uint32_t lookup_nearest(std::uint32_t a_q16, std::uint32_t b_q16) const {
+    const std::uint32_t n1 = static_cast<std::uint32_t>(size_ - 1);
+    const std::uint32_t ia = (std::min<std::uint32_t>(a_q16, 1u << 16) * n1 + (1u << 15)) >> 16;
+    const std::uint32_t ib = (std::min<std::uint32_t>(b_q16, 1u << 16) * n1 + (1u << 15)) >> 16;
+    return table_[ia * static_cast<std::uint32_t>(size_) + ib];
+  }
   const std::vector<std::uint32_t>& table() const { return table_; }
 
  private:

@@ -31,7 +31,7 @@ struct LrParams {
 
 struct EsrParams {
   bool enabled = true;
-  int window = 9;     // [px], odd
+  int window = 5;     // [px], odd
   double tau = 0.5;   // [bit], eq. (15)
 };
 

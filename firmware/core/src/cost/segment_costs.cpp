@@ -67,10 +67,13 @@ void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& ot
     }
     std::int32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.stride + 1);
     std::int32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.stride + 1);
+    std::int32_t acc = 0, acc2 = 0;  // running sums in registers (no store-to-load chain)
     pr[0] = pr2[0] = 0;
     for (int j = 0; j < p.stride; ++j) {
-      pr[j + 1] = pr[j] + v[j];
-      pr2[j + 1] = pr2[j] + v[j] * v[j];
+      acc += v[j];
+      acc2 += v[j] * v[j];
+      pr[j + 1] = acc;
+      pr2[j + 1] = acc2;
     }
   }
 }
@@ -216,10 +219,12 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
         c.igsad[off + i] = igsad_q16(sg[i], inv_gmax);
       }
 
-      // Candidates for NMI: the K best by FIS(NCC, IGSAD); ties -> smaller d.
+      // Candidates for NMI: the K best by FIS(NCC, IGSAD) read at the nearest table node (ranking
+      // needs no interpolation); ties -> smaller d.
       std::iota(order.begin(), order.end(), 0);
       if (K < D) {
-        for (int d = 0; d < D; ++d) prescore[std::size_t(d)] = fis.lookup(c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)]);
+        for (int d = 0; d < D; ++d)
+          prescore[std::size_t(d)] = fis.lookup_nearest(c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)]);
         const auto better = [&](int a, int b) {
           return prescore[std::size_t(a)] != prescore[std::size_t(b)] ? prescore[std::size_t(a)] > prescore[std::size_t(b)] : a < b;
         };
