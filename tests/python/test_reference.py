@@ -130,21 +130,44 @@ def test_wta_ties_go_to_the_smaller_disparity(fis):
     assert dec.disparity[0] == 1
 
 
-def test_candidates_rank_by_fis_of_ncc_and_igsad(fis):
+def test_candidates_rank_by_fis_at_the_nearest_lut_node(fis):
     rng = np.random.default_rng(0)
     c = cost.SegmentCosts(ncc=rng.random((3, 10)), igsad=rng.random((3, 10)), nmi=rng.random((3, 10)), pixels=np.ones(3, int))
-    cand = wta.select_candidates(c, fis, 4, "fast")
-    pre = fis.evaluate_many(c.ncc.ravel(), c.igsad.ravel()).reshape(3, 10)
+    N = 17  # a coarse table, so that many (segment, d) share a node and the d tie-break matters
+    cand = wta.select_candidates(c, fis, 4, "fast", lut_size=N)
+
+    def node(x):  # FisLut::lookup_nearest on the Q16 input, written out in plain integers
+        q = min(int(np.floor(x * 65536 + 0.5)), 65536)
+        return (q * (N - 1) + 32768) >> 16
+
     for s in range(3):
-        expected = sorted(range(10), key=lambda d: (-pre[s, d], d))[:4]
+        key = [int(np.floor(fis.evaluate(node(c.ncc[s, d]) / (N - 1), node(c.igsad[s, d]) / (N - 1)) * 65536 + 0.5))
+               for d in range(10)]
+        expected = sorted(range(10), key=lambda d: (-key[d], d))[:4]
         assert list(cand[s]) == expected
-    dec = wta.fis_winner_take_all(c, fis, 0.5, 4, "fast")
+    dec = wta.fis_winner_take_all(c, fis, 0.5, 4, "fast", lut_size=N)
     full = fis.evaluate_many(c.ncc.ravel(), c.dc2(0.5).ravel()).reshape(3, 10)
     for s in range(3):
         assert dec.disparity[s] in cand[s]
         best = max(cand[s], key=lambda d: (full[s, d], -d))
         assert dec.disparity[s] == best
         assert dec.score[s] == pytest.approx(full[s, best], abs=1e-9)
+
+
+def test_nearest_node_is_the_firmware_integer_rounding():
+    # (min(q, 65536) * (N-1) + 32768) >> 16 for N = 257: halves round up, inputs above 1 clamp
+    q = np.array([0, 127, 128, 255, 256, 65535, 65536, 70000])
+    np.testing.assert_array_equal(wta.nearest_node(q, 257), [0, 0, 1, 1, 1, 256, 256, 256])
+
+
+def test_q16_igsad_is_the_firmware_truncation():
+    gsad = np.array([[0.0, 3.0, 7.0, 10.0]])
+    c = cost.SegmentCosts(ncc=np.array([[0.0, 0.5, 1.0, 0.25]]), igsad=1 - gsad / 10, nmi=np.zeros((1, 4)),
+                          pixels=np.array([4]), gsad=gsad)
+    ncc, igsad = wta.q16_inputs(c)
+    np.testing.assert_array_equal(ncc, [[0, 32768, 65536, 16384]])
+    inv = 65536.0 / 10.0
+    np.testing.assert_array_equal(igsad, [[65536 - int(g * inv) for g in gsad[0]]])
 
 
 def test_k_zero_or_at_least_d_means_all_disparities(fis):

@@ -148,6 +148,7 @@ _doc("dc2_abs_error_max", "wta", "", "max |Data Cost 2| difference of the winner
 for _map, _stage in (("wta_left", "wta"), ("wta_right", "wta"), ("lr", "lrcheck"), ("final", "esr")):
     for _t in (0, 1, 2):
         _doc(f"{_map}_within_{_t}px_pct", _stage, "%", f"pixels of {_map} within {_t} px (both invalid agree)")
+_doc("final_within_1px_valid_pct", "esr", "%", "pixels valid in either final map: both valid and within 1 px (a pixel valid in one map only disagrees)")
 _doc("lr_mask_agreement_pct", "lrcheck", "%", "pixels with the same eq. (13) verdict")
 _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) replaced flag")
 _doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides)")
@@ -170,6 +171,14 @@ def map_agreement(a: np.ndarray, b: np.ndarray, tol: float) -> float:
     with np.errstate(invalid="ignore"):
         close = va & vb & (np.abs(np.where(va, a, 0) - np.where(vb, b, 0)) <= tol + 1e-9)
     return 100.0 * float(np.mean(close | (~va & ~vb)))
+
+
+def valid_agreement_counts(a: np.ndarray, b: np.ndarray, tol: float = 1.0) -> tuple[int, int]:
+    """(agreeing, compared) over the pixels valid in either map: agreeing = both valid within ``tol`` px."""
+    va, vb = ~np.isnan(a), ~np.isnan(b)
+    with np.errstate(invalid="ignore"):
+        close = va & vb & (np.abs(np.where(va, a, 0) - np.where(vb, b, 0)) <= tol + 1e-9)
+    return int(close.sum()), int((va | vb).sum())
 
 
 def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Metric]:
@@ -216,6 +225,8 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
     for name, (fw, ref) in maps.items():
         for t in (0, 1, 2):
             values[f"{name}_within_{t}px_pct"] = map_agreement(fw, ref, t)
+    agree, compared = valid_agreement_counts(*maps["final"], 1.0)
+    values["final_within_1px_valid_pct"] = 100.0 * agree / compared if compared else 100.0
     values["lr_mask_agreement_pct"] = 100.0 * float(np.mean((d["lr_mask"] != 0) == r.lr_mask))
     values["esr_replaced_agreement_pct"] = 100.0 * float(np.mean((d["esr_replaced"] != 0) == r.esr_replaced))
     # stage-isolated

@@ -86,3 +86,28 @@ def parse_fis_eval_output(text: str, expected: int) -> tuple[np.ndarray, np.ndar
         except ValueError:
             raise FatalError(f"'fis eval' output line {i + 1} is not 'lut exact': {line[:80]!r}") from None
     return values[:, 0], values[:, 1]
+
+
+def match(
+    binary: str | Path,
+    left: str | Path,
+    right: str | Path,
+    out: str | Path,
+    max_disparity: int | None = None,
+    config: str | Path | None = None,
+    threads: int | None = None,
+    dump: bool = True,
+    timeout: float = 1800.0,
+) -> Path:
+    """``fuzzystereo match``: disparity maps (and with ``dump`` the stage dump) in ``out``; returns ``out``."""
+    args = ["match", "--left", str(left), "--right", str(right), "--out", str(out)]
+    if max_disparity is not None:
+        args += ["--max-disparity", str(max_disparity)]
+    if config is not None:
+        args += ["--config", str(config)]
+    if threads is not None:
+        args += ["--threads", str(threads)]
+    if dump:
+        args.append("--dump")
+    run(binary, args, timeout=timeout)
+    return Path(out)

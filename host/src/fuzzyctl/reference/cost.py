@@ -33,6 +33,7 @@ class SegmentCosts:
     igsad: np.ndarray  # (n, D) eq. (7)
     nmi: np.ndarray  # (n, D) eq. (2)
     pixels: np.ndarray  # (n,) pixel count per segment
+    gsad: np.ndarray | None = None  # (n, D) eq. (6), exact integers held in float64
 
     def dc2(self, alpha: float) -> np.ndarray:
         """eq. (9): Data Cost 2."""
@@ -118,4 +119,4 @@ def segment_costs(
     # eq. (7)
     gmax = gsad.max(axis=1, keepdims=True)
     igsad = np.where(gmax > 0, 1.0 - gsad / np.where(gmax > 0, gmax, 1.0), 1.0)
-    return SegmentCosts(ncc=ncc, igsad=igsad, nmi=nmi, pixels=n.astype(np.int64))
+    return SegmentCosts(ncc=ncc, igsad=igsad, nmi=nmi, pixels=n.astype(np.int64), gsad=gsad)

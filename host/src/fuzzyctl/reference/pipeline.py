@@ -93,8 +93,9 @@ def match(
     costs_r = cost.segment_costs(right, left, grad_r, grad_l, lab_r, -1, c.max_disparity, c.nmi_bins)
     clock.lap("cost")
 
-    dec_l = wta.fis_winner_take_all(costs_l, fis, c.alpha, c.nmi_candidates, engine, c.subpixel)  # eq. (8)-(12), WTA
-    dec_r = wta.fis_winner_take_all(costs_r, fis, c.alpha, c.nmi_candidates, engine, c.subpixel)
+    wta_args = (fis, c.alpha, c.nmi_candidates, engine, c.subpixel, cfg.fis.lut_size)
+    dec_l = wta.fis_winner_take_all(costs_l, *wta_args)  # eq. (8)-(12), WTA
+    dec_r = wta.fis_winner_take_all(costs_r, *wta_args)
     fis_check = _cross_check(fis, dec_l, dec_r) if engine == "fast" else 0.0
     disp_l = wta.paint_segments(lab_l, dec_l.disparity_sub)
     disp_r = wta.paint_segments(lab_r, dec_r.disparity_sub)

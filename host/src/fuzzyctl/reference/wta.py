@@ -2,9 +2,17 @@
 winner-take-all keeps the best disparity per segment.
 
 With ``nmi_candidates = K`` (0 < K < D) the firmware evaluates NMI only for the K disparities with
-the highest FIS(NCC, IGSAD) — the FIS with Data Cost 2 replaced by IGSAD alone, ties to the
-smaller d — and the WTA runs over those K; with K = 0 (or K >= D) it runs over every d.
-WTA ties go to the smaller d.
+the highest FIS(NCC, IGSAD) — the FIS with Data Cost 2 replaced by IGSAD alone — and the WTA runs
+over those K; with K = 0 (or K >= D) it runs over every d. WTA ties go to the smaller d.
+
+The candidate ranking key is the firmware's ``FisLut::lookup_nearest``: the FIS read at the
+NEAREST node of the N x N lookup table (N = ``fis.lut_size``), no interpolation. From the Q16
+inputs a, b the node is ``ia = (min(a, 65536) (N-1) + 32768) >> 16`` (likewise ib) and its value
+is FIS(ia/(N-1), ib/(N-1)) rounded to Q16; ties go to the smaller d. The reference forms the same
+Q16 inputs (NCC rounded to nearest; IGSAD as ``65536 - trunc(GSAD_d * (65536 / max GSAD))``, the
+firmware's expression on the same exact integer GSAD) and evaluates the exact FIS (not a table) at
+the node coordinates, so the ranking differs from the firmware's only where a node value lies
+within float rounding of a Q16 half-step.
 
 With ``cost.subpixel``, a parabola through the scores at d-1, d, d+1 (when both neighbours took
 part in the WTA) moves the winner to its vertex, d + (s(d+1) - s(d-1)) / (2 (2 s(d) - s(d-1) - s(d+1))),
@@ -57,21 +65,62 @@ def fis_scores(fis: Fis, dc1: np.ndarray, dc2: np.ndarray, engine: str = "fast",
     return out[inverse.ravel()].reshape(shape)
 
 
-def select_candidates(costs: SegmentCosts, fis: Fis, k: int, engine: str = "fast") -> np.ndarray:
-    """(n, K) disparities: the K best by FIS(NCC, IGSAD), best first, ties -> smaller d."""
+Q16_ONE = 1 << 16  # the firmware's kQ16One: 1.0 in Q16
+
+
+def q16_inputs(costs: SegmentCosts) -> tuple[np.ndarray, np.ndarray]:
+    """(NCC, IGSAD) as the firmware holds them, Q16 integers (int64) in [0, 65536].
+
+    NCC: ``round(ncc * 65536)`` of the clamped value (segment_costs.cpp ``ncc_q16``). IGSAD:
+    ``65536 - trunc(GSAD_d * (65536 / max_d GSAD))`` in double, as ``igsad_q16`` computes it, from
+    the exact integer GSAD when the costs carry it (else the float IGSAD rounded to nearest).
+    """
+    ncc = np.minimum(np.floor(np.clip(costs.ncc, 0.0, 1.0) * Q16_ONE + 0.5), Q16_ONE).astype(np.int64)
+    if costs.gsad is not None:
+        gmax = costs.gsad.max(axis=1, keepdims=True)
+        inv = np.where(gmax > 0, float(Q16_ONE) / np.where(gmax > 0, gmax, 1.0), 0.0)
+        igsad = (Q16_ONE - np.trunc(costs.gsad * inv)).astype(np.int64)
+    else:
+        igsad = np.floor(np.clip(costs.igsad, 0.0, 1.0) * Q16_ONE + 0.5).astype(np.int64)
+    return ncc, igsad
+
+
+def nearest_node(q16: np.ndarray, lut_size: int) -> np.ndarray:
+    """Index of the nearest lookup-table node of a Q16 input (``FisLut::lookup_nearest``)."""
+    n1 = lut_size - 1
+    return (np.minimum(np.asarray(q16, dtype=np.int64), Q16_ONE) * n1 + (Q16_ONE >> 1)) >> 16
+
+
+def nearest_node_scores(costs: SegmentCosts, fis: Fis, lut_size: int, engine: str = "fast") -> np.ndarray:
+    """(n, D) Q16 ranking keys: the exact FIS at the nearest table node of (NCC, IGSAD), rounded."""
+    a, b = q16_inputs(costs)
+    n1 = float(lut_size - 1)
+    value = fis_scores(fis, nearest_node(a, lut_size) / n1, nearest_node(b, lut_size) / n1, engine)
+    return np.floor(np.clip(value, 0.0, 1.0) * Q16_ONE + 0.5).astype(np.int64)
+
+
+def select_candidates(costs: SegmentCosts, fis: Fis, k: int, engine: str = "fast", lut_size: int = 257) -> np.ndarray:
+    """(n, K) disparities: the K best by the nearest-node FIS(NCC, IGSAD) (module doc), best first,
+    ties -> smaller d."""
     n, D = costs.ncc.shape
     if k <= 0 or k >= D:
         return np.tile(np.arange(D), (n, 1))
-    pre = fis_scores(fis, costs.ncc, costs.igsad, engine)
+    pre = nearest_node_scores(costs, fis, lut_size, engine)
     order = np.argsort(-pre, axis=1, kind="stable")  # stable: equal scores keep ascending d
     return order[:, :k]
 
 
 def fis_winner_take_all(
-    costs: SegmentCosts, fis: Fis, alpha: float, nmi_candidates: int, engine: str = "fast", subpixel: bool = False
+    costs: SegmentCosts,
+    fis: Fis,
+    alpha: float,
+    nmi_candidates: int,
+    engine: str = "fast",
+    subpixel: bool = False,
+    lut_size: int = 257,
 ) -> SegmentDecision:
     """argmax over the candidates of FIS(DC1, DC2), eq. (8)-(12); ties -> smaller d."""
-    cand = np.sort(select_candidates(costs, fis, nmi_candidates, engine), axis=1)  # ascending d
+    cand = np.sort(select_candidates(costs, fis, nmi_candidates, engine, lut_size), axis=1)  # ascending d
     rows = np.arange(cand.shape[0])[:, None]
     dc1 = costs.ncc[rows, cand]
     dc2 = costs.dc2(alpha)[rows, cand]
