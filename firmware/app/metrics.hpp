@@ -3,7 +3,7 @@
 // pixel with ground truth is scored, so a sparse method is not rewarded for leaving holes.
 //
 // Conventions (all maps CV_32FC1, same size):
-//   estimate:     valid where finite and >= 0 (invalid = -1 or NaN, as disp_q4_to_float writes);
+//   estimate:     valid where finite and > 0 (invalid = -1, 0 or NaN; see est_valid);
 //   ground truth: valid where finite and > 0 (0 = unknown, as load_ground_truth writes).
 #pragma once
 #include <cmath>
@@ -23,7 +23,10 @@ struct DispMetrics {
 };
 
 // True for a valid estimate / ground-truth value under the conventions above.
-inline bool est_valid(float d) { return std::isfinite(d) && d >= 0.0f; }
+// An estimate of exactly 0 px counts as "no estimate": the KITTI disparity PNG (value = d * 256,
+// 0 = invalid) cannot represent it, so this is how the KITTI devkit scores any submitted map, and
+// how `match` writes disp_left.png. Applied to every method alike.
+inline bool est_valid(float d) { return std::isfinite(d) && d > 0.0f; }
 inline bool gt_valid(float d) { return std::isfinite(d) && d > 0.0f; }
 
 // KITTI devkit interpolateBackground(): per row, each run of invalid pixels with valid pixels on

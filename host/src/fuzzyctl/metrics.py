@@ -4,7 +4,7 @@ Invalid estimates are first filled with the devkit's ``interpolateBackground()``
 with ground truth is scored, so a sparse method is not rewarded for leaving holes.
 
 Conventions (float32 maps of one shape, as the firmware holds them):
-  estimate      valid where finite and >= 0 (invalid = -1 or NaN);
+  estimate      valid where finite and > 0 (invalid = -1, 0 or NaN: the KITTI PNG cannot hold 0);
   ground truth  valid where finite and > 0 (0 = unknown, as ``dataset.load_ground_truth`` writes).
 
 Errors are taken in double from the float32 values, like the firmware, so both give the same
@@ -41,7 +41,7 @@ class DispMetrics:
 
 
 def est_valid(d: np.ndarray) -> np.ndarray:
-    return np.isfinite(d) & (d >= 0)
+    return np.isfinite(d) & (d > 0)
 
 
 def gt_valid(d: np.ndarray) -> np.ndarray:
