@@ -244,22 +244,139 @@ def _write_reference_outputs(out: Path, r, cfg, fis, left_path, right_path, engi
         cv2.imwrite(str(out / f"{name}_color.png"), colour_disparity(disp, cfg.cost.max_disparity))
 
 
+_jobs_option = click.option("--jobs", "-j", type=click.IntRange(1), default=1, show_default=True,
+                            help="Frames processed in parallel (worker processes).")
+_limit_option = click.option("--limit", type=click.IntRange(0), default=0, show_default=True,
+                             help="At most N frames per set (0 = all), as `fuzzystereo eval --limit`.")
+_bin_option = click.option("--bin", "binary", type=_path, default=None,
+                           help="fuzzystereo binary (default $FUZZYSTEREO_BIN or build/default/fuzzystereo).")
+
+
+def _frames(dataset_dir: Path, limit: int):
+    from .dataset import discover, select
+
+    skipped: list[str] = []
+    frames = select(discover(dataset_dir), limit, need_gt=True, skipped=skipped)
+    for s in skipped:
+        err_console.print(f"skipping {s}")
+    if not frames:
+        raise FatalError(f"no frames with ground truth under '{dataset_dir}'")
+    return frames
+
+
+@reference_group.command("eval")
+@click.option("--dataset", "dataset_dir", type=_path, required=True,
+              help="Datasets root, one set's folder or one scene folder (the layouts of `fuzzystereo eval`).")
+@click.option("--from-firmware", is_flag=True,
+              help="Score the firmware's final maps (`fuzzystereo match --dump` per frame) instead of the reference's.")
+@click.option("--runs", "runs_dir", type=_path, default=None,
+              help="With --from-firmware: keep the firmware runs in RUNS/<set>/<name>/ and reuse those already there.")
+@click.option("--firmware-json", type=_existing_file, default=None,
+              help="`fuzzystereo eval --json` output to put beside these figures (with --from-firmware: must agree).")
+@click.option("--config", "config_file", type=_existing_file, default=None, help="Matcher config TOML (search range per layout).")
+@_limit_option
+@click.option("--json", "json_out", type=_path, default=None, help="Write the figures as {\"sets\": {SET: {METHOD: {...}}}}.")
+@click.option("--tolerance", type=click.FloatRange(0.0), default=1e-6, show_default=True,
+              help="Max |difference| to the --firmware-json figures when scoring the firmware's maps.")
+@_jobs_option
+@_bin_option
+@_fis_option
+@_engine_option
+def reference_eval(dataset_dir: Path, from_firmware: bool, runs_dir: Path | None, firmware_json: Path | None,
+                   config_file: Path | None, limit: int, json_out: Path | None, tolerance: float, jobs: int,
+                   binary: Path | None, fis_file: Path | None, engine: str) -> None:
+    """KITTI-devkit figures (avg_err, bad2, bad3, d1, density) per set, as `fuzzystereo eval` computes them."""
+    import json
+
+    from .config import load_config
+    from .errors import CheckFailed
+    from .evaluate import METHOD, diff_figures, read_eval_json, scorer, summarise
+    from .firmware import find_binary
+    from .parallel import run_frames
+
+    load_config(config_file)  # a bad config fails before the first frame
+    theirs = read_eval_json(firmware_json) if firmware_json is not None else None
+    frames = _frames(dataset_dir, limit)
+    source = "firmware" if from_firmware else "reference"
+    kwargs = dict(config_path=config_file, fis_path=fis_file, engine=engine)
+    if from_firmware:
+        kwargs.update(binary=find_binary(binary), runs_root=runs_dir, threads=1 if jobs > 1 else None)
+    scores, errors = [], []
+    for frame, res in run_frames(scorer(source, **kwargs), frames, jobs, f"eval ({source})", err_console):
+        if isinstance(res, FatalError):
+            errors.append(f"{frame.key}: {res}")
+            continue
+        scores.append(res)
+        m = res.metrics
+        err_console.print(f"{frame.key} D={frame.max_disparity}: avg_err {m.avg_err:.3f} bad2 {m.bad2:.2f}% "
+                          f"bad3 {m.bad3:.2f}% d1 {m.d1:.2f}% density {m.density:.1f}%")
+    if errors:
+        raise FatalError("; ".join(errors))
+    method = METHOD[source]
+    ours = summarise(scores, method)
+    table = Table(title=f"{method} on {dataset_dir} (per-frame means, KITTI hole filling)")
+    for col in ("set", "method", "frames", "avg_err", "bad2%", "bad3%", "d1%", "density%"):
+        table.add_column(col, justify="left" if col in ("set", "method") else "right")
+    for set_name, methods in ours["sets"].items():
+        f = methods[method]
+        table.add_row(set_name, method, str(f["frames"]), f"{f['avg_err']:.3f}", f"{f['bad2']:.2f}", f"{f['bad3']:.2f}",
+                      f"{f['d1']:.2f}", f"{f['density']:.2f}")
+    console.print(table)
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(ours, indent=2) + "\n", encoding="utf-8")
+        console.print(f"wrote {json_out}")
+    if theirs is None:
+        return
+    diffs = diff_figures(ours, theirs, method)
+    table = Table(title=f"vs firmware eval {firmware_json}")
+    for col in ("set", "figure", method, "fuzzystereo eval", "|diff|"):
+        table.add_column(col)
+    for d in diffs:
+        table.add_row(d.set, d.figure, f"{d.ours:.6f}", "missing" if d.theirs is None else f"{d.theirs:.6f}",
+                      "" if d.abs_diff is None else f"{d.abs_diff:.2e}")
+    console.print(table)
+    if from_firmware:
+        bad = [d for d in diffs if d.abs_diff is None or d.abs_diff > tolerance]
+        if bad:
+            raise CheckFailed("metric code disagrees with the firmware eval: " + ", ".join(
+                f"{d.set} {d.figure} {d.ours:.6g} vs {d.theirs}" for d in bad))
+        console.print(f"every figure within {tolerance:g} of the firmware eval: OK")
+
+
 # ---- compare --------------------------------------------------------------------------------
 
 
 @app.command("compare")
-@click.argument("run_dir", type=_path)
+@click.argument("run_dir", type=_path, required=False)
+@click.option("--dataset", "dataset_dir", type=_path, default=None,
+              help="Instead of RUN_DIR: run the firmware on every frame under DIR and compare each.")
 @click.option("--tolerances", type=_path, default=None, help="Tolerances TOML (default common/compare/tolerances.toml).")
-@click.option("--report", type=_path, default=None, help="Write a self-contained HTML report here.")
+@click.option("--report", type=_path, default=None,
+              help="HTML report file; with --dataset a directory (runs, report.html per frame, index.html, summary.json).")
 @click.option("--reference-out", type=_path, default=None, help="Also write the reference's outputs (dump format) here.")
 @click.option("--own-segmentation", is_flag=True, help="Let the reference run its own SLIC instead of reusing the firmware's labels.")
+@_jobs_option
+@_limit_option
+@click.option("--config", "config_file", type=_existing_file, default=None, help="With --dataset: config passed to the firmware.")
+@_bin_option
 @_fis_option
 @_engine_option
-def compare_cmd(run_dir: Path, tolerances: Path | None, report: Path | None, reference_out: Path | None,
-                own_segmentation: bool, fis_file: Path | None, engine: str) -> None:
-    """Firmware dump (RUN_DIR/dump or RUN_DIR) vs the float64 reference, stage by stage."""
+def compare_cmd(run_dir: Path | None, dataset_dir: Path | None, tolerances: Path | None, report: Path | None,
+                reference_out: Path | None, own_segmentation: bool, jobs: int, limit: int, config_file: Path | None,
+                binary: Path | None, fis_file: Path | None, engine: str) -> None:
+    """Firmware dump (RUN_DIR/dump or RUN_DIR) vs the float64 reference, stage by stage; or, with
+    --dataset, every frame of a dataset (the firmware run with the layout's search range)."""
     from .compare import compare_run
     from .errors import CheckFailed
+
+    if (run_dir is None) == (dataset_dir is None):
+        raise FatalError("give either RUN_DIR (one firmware dump) or --dataset DIR (run the firmware on every frame)")
+    if dataset_dir is not None:
+        if reference_out is not None or own_segmentation:
+            raise FatalError("--reference-out and --own-segmentation apply to one RUN_DIR, not to --dataset")
+        _compare_dataset(dataset_dir, tolerances, report, jobs, limit, config_file, binary, fis_file, engine)
+        return
 
     with console.status("running the reference on the dump ..."):
         c = compare_run(run_dir, tolerances, fis_file, engine=engine, own_segmentation=own_segmentation)
@@ -290,6 +407,77 @@ def compare_cmd(run_dir: Path, tolerances: Path | None, report: Path | None, ref
         raise CheckFailed("comparison outside tolerance: " + ", ".join(
             f"{m.name} = {m.value:.4g} (needs {t.text()})" for m, t in c.failures()))
     console.print("all checked metrics within tolerance")
+
+
+def _compare_dataset(dataset_dir: Path, tolerances: Path | None, report: Path | None, jobs: int, limit: int,
+                     config_file: Path | None, binary: Path | None, fis_file: Path | None, engine: str) -> None:
+    import json
+
+    from .compare import load_tolerances
+    from .dataset_compare import comparer, pct, pooled
+    from .errors import CheckFailed
+    from .firmware import find_binary
+    from .parallel import run_frames
+
+    load_tolerances(tolerances)  # bad tolerances fail before the first frame
+    exe = find_binary(binary)
+    frames = _frames(dataset_dir, limit)
+    fn = comparer(exe, runs_root=report, tolerances=tolerances, fis_path=fis_file, engine=engine,
+                  config_path=config_file, threads=1 if jobs > 1 else None, report=report is not None)
+    summaries, errors = [], {}
+    for frame, res in run_frames(fn, frames, jobs, f"compare ({len(frames)} frames, {jobs} jobs)", err_console):
+        if isinstance(res, FatalError):
+            errors[frame.key] = str(res)
+            err_console.print(f"[red]{escape(frame.key)}: {escape(str(res))}[/]")
+            continue
+        summaries.append(res)
+        verdict = "[green]ok[/]" if res.passed else "[red]FAIL[/]"
+        err_console.print(f"{frame.key}: winners {res.winner_pct:.2f} %, final within 1 px {res.valid_within_1px_pct:.2f} % "
+                          f"of valid pixels, {res.seconds:.0f} s {verdict}")
+    summaries.sort(key=lambda s: (s.frame.set, s.frame.name))
+    table = Table(title=f"firmware vs reference, firmware labels — {dataset_dir}")
+    for col in ("frame", "D", "segs", "win L%", "win R%", "win%", "±1px valid%", "±1px all%", "s", "status"):
+        table.add_column(col, no_wrap=True, justify="left" if col in ("frame", "status") else "right")
+    for s in summaries:
+        status = "[green]ok[/]" if s.passed else "[red]FAIL[/]"
+        table.add_row(s.frame.key, str(s.frame.max_disparity), str(s.segments), f"{s.winner_left_pct:.2f}",
+                      f"{s.winner_right_pct:.2f}", f"{s.winner_pct:.2f}", f"{s.valid_within_1px_pct:.2f}",
+                      f"{s.final_within_1px_pct:.2f}", f"{s.seconds:.0f}", status)
+    win, within = pooled(summaries)
+    table.add_row("[bold]overall[/]", "", str(sum(s.segments for s in summaries)), "", "", f"[bold]{win:.2f}[/]",
+                  f"[bold]{within:.2f}[/]", "", "", f"{sum(s.passed for s in summaries)}/{len(frames)} ok")
+    table.caption = ("win: segments with the reference's winner; ±1px valid: of the pixels valid in either final map, "
+                     "both valid and within 1 px; ±1px all: of all pixels, both invalid counting as agreement")
+    console.print(table)
+    for s in summaries:
+        if s.failures:
+            console.print(f"{s.frame.key}: " + ", ".join(s.failures))
+    if report is not None:
+        from .report import write_index
+
+        doc = {
+            "dataset": str(dataset_dir), "frames": len(frames),
+            "overall": {"winner_agreement_pct": win, "final_within_1px_valid_pct": within,
+                        "final_within_1px_both_valid_pct": pct(sum(s.both_valid_within_1px for s in summaries),
+                                                               sum(s.both_valid for s in summaries)),
+                        "final_within_1px_firmware_valid_pct": pct(sum(s.firmware_valid_within_1px for s in summaries),
+                                                                   sum(s.firmware_valid for s in summaries))},
+            "per_frame": {s.frame.key: {
+                "winner_left_pct": s.winner_left_pct, "winner_right_pct": s.winner_right_pct,
+                "winner_pct": s.winner_pct, "final_within_1px_valid_pct": s.valid_within_1px_pct,
+                "final_within_1px_pct": s.final_within_1px_pct, "segments": s.segments,
+                "final_within_1px_both_valid_pct": pct(s.both_valid_within_1px, s.both_valid),
+                "final_within_1px_firmware_valid_pct": pct(s.firmware_valid_within_1px, s.firmware_valid),
+                "seconds": s.seconds, "failures": s.failures} for s in summaries},
+            "errors": errors,
+        }
+        report.mkdir(parents=True, exist_ok=True)
+        (report / "summary.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+        console.print(f"wrote {write_index(summaries, report, str(dataset_dir))} and {report / 'summary.json'}")
+    failed = [s.frame.key for s in summaries if not s.passed] + list(errors)
+    if failed:
+        raise CheckFailed(f"{len(failed)} of {len(frames)} frames outside tolerance or failed: {', '.join(failed)}")
+    console.print(f"all {len(frames)} frames within tolerance")
 
 
 # ---- main -----------------------------------------------------------------------------------

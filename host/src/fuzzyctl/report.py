@@ -226,3 +226,27 @@ def write_report(c: Comparison, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render(c), encoding="utf-8")
     return path
+
+
+def write_index(summaries, out_dir: str | Path, title: str) -> Path:
+    """``out_dir/index.html``: one row per frame of a dataset comparison, linking its report."""
+    out_dir = Path(out_dir)
+    rows = []
+    for s in summaries:
+        link = Path(s.report).relative_to(out_dir).as_posix() if s.report else ""
+        name = f'<a href="{html.escape(link)}">{html.escape(s.frame.key)}</a>' if link else html.escape(s.frame.key)
+        status = "ok" if s.passed else "FAIL: " + html.escape("; ".join(s.failures))
+        rows.append(f"<tr><td>{name}</td><td>{s.width}x{s.height}</td><td>{s.frame.max_disparity}</td>"
+                    f"<td>{s.winner_left_pct:.2f}</td><td>{s.winner_right_pct:.2f}</td>"
+                    f"<td>{s.valid_within_1px_pct:.2f}</td><td>{s.final_within_1px_pct:.2f}</td><td>{status}</td></tr>")
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>fuzzyctl compare — {html.escape(title)}</title>
+<style>body{{font-family:sans-serif}} td,th{{padding:2px 8px;text-align:right}} td:first-child{{text-align:left}}</style>
+</head><body><h1>firmware vs reference — {html.escape(title)}</h1>
+<p>fuzzyctl {__version__}; per-frame reports link from the frame name.</p>
+<table><tr><th>frame</th><th>size</th><th>D</th><th>winner L %</th><th>winner R %</th>
+<th>final ±1 px % (valid)</th><th>final ±1 px % (all)</th><th>status</th></tr>
+{''.join(rows)}</table></body></html>
+"""
+    path = out_dir / "index.html"
+    path.write_text(page, encoding="utf-8")
+    return path
