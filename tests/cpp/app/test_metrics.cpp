@@ -35,8 +35,10 @@ TEST(FillInvalidKitti, BorderRunsTakeNearestValid) {
             (std::vector<float>{4, 4, 4, 4, 6, 6}));
 }
 
-TEST(FillInvalidKitti, ZeroIsAValidEstimate) {
-  EXPECT_EQ(to_vec(fill_invalid_kitti(row_mat({0, kInv, 8}))), (std::vector<float>{0, 0, 8}));
+TEST(FillInvalidKitti, ZeroIsNoEstimateAsInTheKittiPng) {
+  // 0 px cannot be written to a KITTI disparity PNG (0 = invalid), so it is filled like a hole.
+  EXPECT_EQ(to_vec(fill_invalid_kitti(row_mat({0, kInv, 8}))), (std::vector<float>{8, 8, 8}));
+  EXPECT_EQ(to_vec(fill_invalid_kitti(row_mat({6, 0, 8}))), (std::vector<float>{6, 6, 8}));
 }
 
 TEST(FillInvalidKitti, EmptyRowsAtTopAndBottomComeFromTheColumn) {
