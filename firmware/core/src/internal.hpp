@@ -18,6 +18,15 @@
 #define FS_TARGET_CLONES
 #endif
 
+// gcc's -O3 loop unroll-and-jam fuses the pixel loop of a register-blocked kernel (an outer loop
+// over pixels around a fixed-size inner loop over disparities) into a scalar loop over pixel pairs
+// and leaves the vector code for the remainder; this keeps the inner loop vectorised instead.
+#if defined(__GNUC__) && !defined(__clang__)
+#define FS_NO_UNROLL_AND_JAM __attribute__((optimize("no-loop-unroll-and-jam")))
+#else
+#define FS_NO_UNROLL_AND_JAM
+#endif
+
 namespace fs::detail {
 
 inline int resolve_threads(int requested) {

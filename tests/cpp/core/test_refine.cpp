@@ -104,6 +104,26 @@ TEST(Esr, BlockEntropyIncrementalEqualsRecomputation) {
   }
 }
 
+TEST(Esr, BlockEntropyOnPiecewiseConstantMaps) {
+  // Segment-like patches (vertical runs longer than the window, runs of equal integer bins with
+  // different Q4 values, invalid patches): the run-wise column updates against recomputation.
+  for (auto [w, h, win] : {std::tuple{43, 37, 5}, {29, 23, 3}, {31, 41, 9}}) {
+    std::mt19937 rng(11u);
+    std::uniform_int_distribution<int> ud(0, 11), up(0, 99);
+    std::vector<std::int16_t> patch(std::size_t((w / 5 + 1) * (h / 7 + 1)));
+    for (auto& v : patch) v = up(rng) < 10 ? kInvalidDisp : static_cast<std::int16_t>(ud(rng) * kDispScale);
+    ImageI16 d(w, h);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::int16_t v = patch[std::size_t((y / 7) * (w / 5 + 1) + x / 5)];
+        d.at(x, y) = v == kInvalidDisp ? v : static_cast<std::int16_t>(v + (y % 3 == 0 ? 3 : 5));  // same bin
+      }
+    const ImageI32 e = block_entropy(d, win, 12);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) ASSERT_EQ(e.at(x, y), entropy_reference(d, x, y, win)) << x << "," << y << " w" << win;
+  }
+}
+
 TEST(Esr, EntropyOfKnownBlocks) {
   ImageI16 d(9, 9, static_cast<std::int16_t>(3 * kDispScale));
   EXPECT_EQ(block_entropy(d, 3, 8).at(4, 4), 0);  // constant block: 0 bit

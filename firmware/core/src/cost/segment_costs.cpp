@@ -6,12 +6,19 @@
 // image (border replicated). Per row, the other image is stored "padded and ordered by d":
 //   O[y][base(x) + d] = other(y, clamp(x - direction*d))
 // with base(x) = W-1-x (left reference, reversed row) or base(x) = x (right reference). The D
-// partners of one pixel are therefore contiguous, and the per-pixel loop over d is a plain
-// SIMD-friendly loop (int32 lanes). Sums over the partners alone (sum r, sum r^2) are taken per run
-// from row prefix sums of O: a run [x0, x1) maps to O indices [lo + d, hi + d).
+// partners of one pixel are therefore contiguous. Sums over the partners alone (sum r, sum r^2)
+// are taken per run from row prefix sums of O: a run [x0, x1) maps to O indices [lo + d, hi + d).
+//
+// The per-pixel sums (sum l*r, sum |gl - gr|) are register-blocked: per segment the pixels are
+// listed once (offset into O, l, gl, NMI bin), then for each block of kBlock disparities one pass
+// over the list keeps the 2*kBlock int32 accumulators in vector registers (no load/store of a
+// D-long accumulator array per pixel). Rows are padded by kBlock partners so the last block reads
+// inside the row; its lanes beyond D are discarded.
 //
 // Fixed-point formats and overflow bounds (n = segment pixels, any n < 2^24):
 //   sum l, sum l^2, sum r, sum r^2     int64       (<= n * 65025)
+//   l*r per pixel                      uint16 lane (l, r <= 255: l*r <= 65025 < 2^16)
+//   |gl - gr| per pixel                int16 lane  (gradients <= 1443)
 //   sum r, sum r^2, sum l*r, sum |gl - gr| per d
 //                                      int32 lanes, flushed into int64 before they hold more than
 //                                      kFlushPixels pixels: kFlushPixels * 65025 < 2^31
@@ -31,45 +38,52 @@ namespace fs {
 
 namespace {
 
-constexpr int kFlushPixels = 32768;  // 32768 * 65025 < 2^31
+constexpr int kFlushPixels = 32768;  // 32768 * 65025 < 2^31 (and 32768 * 1443 < 2^31)
+constexpr int kNmiGroup = 4;         // NMI candidates evaluated per pass over a segment's pixels
+constexpr int kBlock = 32;           // disparities per register block: 2 x 32 int32 lanes = 8 AVX2 registers
 
 // Padded partner rows of one image for one direction.
 struct PartnerRows {
-  int stride = 0;                       // W + D - 1
-  std::vector<std::int16_t> val;        // O: grey value
-  std::vector<std::int16_t> grad;       // gradient magnitude
+  int stride = 0;                       // W + D + kBlock - 1 (see build_partner_rows)
+  std::vector<std::uint16_t> val;       // O: grey value (0..255)
+  std::vector<std::int16_t> grad;       // gradient magnitude (0..1443)
   std::vector<std::uint8_t> bin;        // NMI bin of the grey value
-  std::vector<std::int32_t> pre, pre2;  // row prefix sums of O and O^2, stride + 1 per row
-                                        // (<= (W + D) * 65025 < 2^31 for W + D <= 33000)
+  int pre_stride = 0;                   // W + D
+  std::vector<std::int32_t> pre, pre2;  // row prefix sums of O and O^2 over the first W + D - 1
+                                        // partners (the block padding is not summed):
+                                        // <= (W + D) * 65025 < 2^31 for W + D <= 33000
 };
 
+// D is the number of disparities searched (with the test-only shift). The rows hold D + kBlock
+// partners per pixel, so a block of kBlock disparities starting at any d0 < D reads inside the row.
 void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& other_grad, int direction, int D, int bins) {
   const int w = other.width, h = other.height;
-  p.stride = w + D - 1;
+  p.stride = w + D + kBlock - 1;
   const std::size_t n = std::size_t(h) * std::size_t(p.stride);
   p.val.resize(n);
   p.grad.resize(n);
   p.bin.resize(n);
-  p.pre.resize(std::size_t(h) * std::size_t(p.stride + 1));
+  p.pre_stride = w + D;
+  p.pre.resize(std::size_t(h) * std::size_t(p.pre_stride));
   p.pre2.resize(p.pre.size());
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* src = other.row(y);
     const std::uint16_t* gsrc = other_grad.row(y);
-    std::int16_t* v = p.val.data() + std::size_t(y) * std::size_t(p.stride);
+    std::uint16_t* v = p.val.data() + std::size_t(y) * std::size_t(p.stride);
     std::int16_t* g = p.grad.data() + std::size_t(y) * std::size_t(p.stride);
     std::uint8_t* b = p.bin.data() + std::size_t(y) * std::size_t(p.stride);
     for (int j = 0; j < p.stride; ++j) {
       // left reference: O[j] = other[W-1-j] (clamped at 0); right reference: O[j] = other[min(j, W-1)]
       const int x = direction > 0 ? std::max(0, w - 1 - j) : std::min(j, w - 1);
-      v[j] = static_cast<std::int16_t>(src[x]);
+      v[j] = src[x];
       g[j] = static_cast<std::int16_t>(gsrc[x]);
       b[j] = static_cast<std::uint8_t>((src[x] * bins) >> 8);
     }
-    std::int32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.stride + 1);
-    std::int32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.stride + 1);
+    std::int32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.pre_stride);
+    std::int32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.pre_stride);
     std::int32_t acc = 0, acc2 = 0;  // running sums in registers (no store-to-load chain)
     pr[0] = pr2[0] = 0;
-    for (int j = 0; j < p.stride; ++j) {
+    for (int j = 0; j + 1 < p.pre_stride; ++j) {
       acc += v[j];
       acc2 += v[j] * v[j];
       pr[j + 1] = acc;
@@ -78,14 +92,35 @@ void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& ot
   }
 }
 
-// The hot loop: for one reference pixel (l, gl), accumulate l*r and |gl - gr| over all d.
-FS_TARGET_CLONES
-void accumulate_pixel(std::int32_t l, std::int32_t gl, const std::int16_t* __restrict o,
-                      const std::int16_t* __restrict og, std::int32_t* __restrict slr,
-                      std::int32_t* __restrict sg, int D) {
-  for (int d = 0; d < D; ++d) {
-    slr[d] += l * o[d];
-    sg[d] += std::abs(gl - og[d]);
+// One reference pixel of a segment: its partners start at O[off] (row offset + base(x)).
+struct SegPixel {
+  std::int32_t off;
+  std::uint16_t gl;  // gradient magnitude, <= 1443
+  std::uint8_t l;    // grey value
+  std::uint8_t bx;   // NMI bin of l
+};
+
+// The hot loop: for n pixels and the kBlock disparities starting at val/grad + off, the sums of
+// l*r and |gl - gr| (n <= kFlushPixels). The accumulators are locals of fixed size, so the
+// compiler keeps them in registers across the whole pixel loop; per pixel the products are taken
+// in 16-bit lanes (both fit, see the header) and widened once for the add.
+FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t* __restrict val,
+                      const std::int16_t* __restrict grad, std::int32_t* __restrict slr, std::int32_t* __restrict sg) {
+  std::int32_t a[kBlock] = {}, g[kBlock] = {};
+  for (int i = 0; i < n; ++i) {
+    const std::uint16_t* o = val + px[i].off;
+    const std::int16_t* og = grad + px[i].off;
+    const std::uint16_t l = px[i].l;
+    const auto gl = static_cast<std::int16_t>(px[i].gl);
+    for (int j = 0; j < kBlock; ++j) {
+      a[j] += static_cast<std::uint16_t>(l * o[j]);
+      g[j] += static_cast<std::uint16_t>(std::abs(static_cast<std::int16_t>(gl - og[j])));
+    }
+  }
+  for (int j = 0; j < kBlock; ++j) {
+    slr[j] = a[j];
+    sg[j] = g[j];
   }
 }
 
@@ -114,6 +149,21 @@ inline std::uint32_t ncc_q16(std::int64_t num, std::int64_t varr, double varl) {
 // reciprocal in double (one division per segment instead of one per disparity).
 inline std::uint32_t igsad_q16(std::int64_t g, double inv_max_q16) {
   return static_cast<std::uint32_t>(kQ16One - static_cast<std::int64_t>(static_cast<double>(g) * inv_max_q16));
+}
+
+// The K best disparities by (prescore desc, d asc), best first: one pass keeping a sorted list of
+// K (most disparities lose against the K-th best with one comparison).
+//   key = prescore * 2^32 + (2^32 - 1 - d): larger key = better, ties -> smaller d.
+void top_k(const std::uint32_t* prescore, int D, int K, std::uint64_t* best, int* order) {
+  int m = 0;
+  for (int d = 0; d < D; ++d) {
+    const std::uint64_t key = (std::uint64_t(prescore[d]) << 32) | (0xFFFFFFFFu - static_cast<std::uint32_t>(d));
+    if (m == K && key <= best[K - 1]) continue;
+    int j = m < K ? m++ : K - 1;
+    for (; j > 0 && best[j - 1] < key; --j) best[j] = best[j - 1];
+    best[j] = key;
+  }
+  for (int k = 0; k < K; ++k) order[k] = static_cast<int>(0xFFFFFFFFu - static_cast<std::uint32_t>(best[k]));
 }
 
 }  // namespace
@@ -153,12 +203,16 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
 #endif
   {
     (void)nt;
-    std::vector<std::int32_t> slr32(static_cast<std::size_t>(D)), sg32(static_cast<std::size_t>(D));
-    std::vector<std::int32_t> sr32(static_cast<std::size_t>(D)), srr32(static_cast<std::size_t>(D));
-    std::vector<std::int64_t> slr(static_cast<std::size_t>(D)), sg(static_cast<std::size_t>(D)), sr(static_cast<std::size_t>(D)), srr(static_cast<std::size_t>(D));
-    std::vector<std::uint32_t> joint(static_cast<std::size_t>(B * B)), hy(static_cast<std::size_t>(B)), hx(static_cast<std::size_t>(B));
-    std::vector<std::uint32_t> prescore(static_cast<std::size_t>(D));
-    std::vector<int> order(static_cast<std::size_t>(D));
+    const auto uD = static_cast<std::size_t>(D);
+    std::vector<std::int32_t> sr32(uD), srr32(uD);
+    std::vector<std::int64_t> slr(uD), sg(uD), sr(uD), srr(uD);
+    std::int32_t blr[kBlock], bg[kBlock];
+    std::vector<SegPixel> px;
+    std::vector<std::uint32_t> joint(std::size_t(kNmiGroup) * std::size_t(B * B), 0), hy(std::size_t(kNmiGroup * B), 0),
+        hx(static_cast<std::size_t>(B));
+    std::vector<std::uint32_t> prescore(uD);
+    std::vector<std::uint64_t> best(uD);
+    std::vector<int> order(uD);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(dynamic, 32)
 #endif
@@ -167,48 +221,62 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
       const Run* r1 = seg.runs.data() + seg.run_begin[std::size_t(s) + 1];
       std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
       std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
-      std::fill(slr32.begin(), slr32.end(), 0); std::fill(sg32.begin(), sg32.end(), 0);
       std::fill(sr32.begin(), sr32.end(), 0); std::fill(srr32.begin(), srr32.end(), 0);
-      const auto flush = [&] {
-        for (int d = 0; d < D; ++d) {
-          const std::size_t i = std::size_t(d);
-          slr[i] += slr32[i]; sg[i] += sg32[i]; sr[i] += sr32[i]; srr[i] += srr32[i];
-          slr32[i] = sg32[i] = sr32[i] = srr32[i] = 0;
-        }
-      };
-      std::int64_t n = 0, sl = 0, sll = 0;
+      std::fill(hx.begin(), hx.end(), 0);  // joint and hy are all-zero after each candidate
+
+      // Pixel list, grey-value sums, H(x) histogram and the partner-only sums (per run).
+      px.clear();
+      std::int64_t sl = 0, sll = 0;
+      std::uint64_t sum_tx = 0;
       int since_flush = 0;
       for (const Run* r = r0; r != r1; ++r) {
         const std::uint8_t* lrow = ref.row(r->y);
         const std::uint16_t* grow = ref_grad.row(r->y);
-        const std::size_t ro = std::size_t(r->y) * std::size_t(pr.stride);
-        const std::int16_t* orow = pr.val.data() + ro;
-        const std::int16_t* ogrow = pr.grad.data() + ro;
-        // Partner-only sums from prefix sums: the run's partners at d are O[lo + d .. hi + d).
-        const int lo = std::min(base_of(r->x0), base_of(r->x1 - 1));
-        const int hi = std::max(base_of(r->x0), base_of(r->x1 - 1)) + 1;
-        const std::int32_t* pre = pr.pre.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
-        const std::int32_t* pre2 = pr.pre2.data() + std::size_t(r->y) * std::size_t(pr.stride + 1);
+        const auto ro = static_cast<std::int32_t>(std::size_t(r->y) * std::size_t(pr.stride));
         const int len = r->x1 - r->x0;  // <= W <= kFlushPixels (checked by the Matcher)
         if (since_flush + len > kFlushPixels) {
-          flush();
+          for (std::size_t i = 0; i < uD; ++i) {
+            sr[i] += sr32[i]; srr[i] += srr32[i];
+            sr32[i] = srr32[i] = 0;
+          }
           since_flush = 0;
         }
         since_flush += len;
-        accumulate_run(pre, pre2, lo, hi, sr32.data(), srr32.data(), D);
-        const int b0 = base_of(r->x0), step = direction > 0 ? -1 : 1;
-        for (int x = r->x0, b = b0; x < r->x1; ++x, b += step) {
+        // The run's partners at d are O[lo + d .. hi + d).
+        const int lo = std::min(base_of(r->x0), base_of(r->x1 - 1));
+        const int hi = std::max(base_of(r->x0), base_of(r->x1 - 1)) + 1;
+        accumulate_run(pr.pre.data() + std::size_t(r->y) * std::size_t(pr.pre_stride),
+                       pr.pre2.data() + std::size_t(r->y) * std::size_t(pr.pre_stride), lo, hi, sr32.data(),
+                       srr32.data(), D);
+        for (int x = r->x0; x < r->x1; ++x) {
           const std::int32_t l = lrow[x];
           sl += l;
           sll += l * l;
-          accumulate_pixel(l, grow[x], orow + b, ogrow + b, slr32.data(), sg32.data(), D);
+          const auto bx = static_cast<std::uint8_t>((l * B) >> 8);
+          std::uint32_t& cx = hx[bx];
+          sum_tx += T[cx + 1] - T[cx];
+          ++cx;
+          px.push_back({ro + base_of(x), grow[x], static_cast<std::uint8_t>(l), bx});
         }
-        n += len;
       }
-      flush();
+      for (std::size_t i = 0; i < uD; ++i) { sr[i] += sr32[i]; srr[i] += srr32[i]; }
+      const auto n = static_cast<std::int64_t>(px.size());
+
+      // sum l*r and sum |gl - gr|, kBlock disparities at a time, kFlushPixels pixels at a time.
+      for (int d0 = 0; d0 < D; d0 += kBlock) {
+        const int nb = std::min(kBlock, D - d0);
+        for (std::size_t i0 = 0; i0 < px.size(); i0 += kFlushPixels) {
+          const int cnt = static_cast<int>(std::min<std::size_t>(kFlushPixels, px.size() - i0));
+          accumulate_block(px.data() + i0, cnt, pr.val.data() + d0, pr.grad.data() + d0, blr, bg);
+          for (int j = 0; j < nb; ++j) {
+            slr[std::size_t(d0 + j)] += blr[j];
+            sg[std::size_t(d0 + j)] += bg[j];
+          }
+        }
+      }
 
       // eq. (1) NCC and eq. (6)-(7) IGSAD.
-      const std::size_t off = std::size_t(s) * std::size_t(D);
+      const std::size_t off = std::size_t(s) * uD;
       const auto varl = static_cast<double>(n * sll - sl * sl);
       std::int64_t gmax = 0;
       for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg[std::size_t(d)]);
@@ -221,59 +289,57 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
 
       // Candidates for NMI: the K best by FIS(NCC, IGSAD) read at the nearest table node (ranking
       // needs no interpolation); ties -> smaller d.
-      std::iota(order.begin(), order.end(), 0);
       if (K < D) {
         for (int d = 0; d < D; ++d)
           prescore[std::size_t(d)] = fis.lookup_nearest(c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)]);
-        const auto better = [&](int a, int b) {
-          return prescore[std::size_t(a)] != prescore[std::size_t(b)] ? prescore[std::size_t(a)] > prescore[std::size_t(b)] : a < b;
-        };
-        std::nth_element(order.begin(), order.begin() + (K - 1), order.end(), better);
-        std::sort(order.begin(), order.begin() + K, better);
+        top_k(prescore.data(), D, K, best.data(), order.data());
+      } else {
+        std::iota(order.begin(), order.end(), 0);
       }
 
-      // eq. (2)-(4): NMI from the joint histogram; entropies kept incrementally with T[c].
-      std::fill(hx.begin(), hx.end(), 0);
-      std::uint64_t sum_tx = 0;
-      for (const Run* r = r0; r != r1; ++r) {
-        const std::uint8_t* lrow = ref.row(r->y);
-        for (int x = r->x0; x < r->x1; ++x) {
-          std::uint32_t& cx = hx[std::size_t((lrow[x] * B) >> 8)];
-          sum_tx += T[cx + 1] - T[cx];
-          ++cx;
-        }
-      }
+      // eq. (2)-(4): NMI from the joint histogram, kNmiGroup candidates per pass over the pixel
+      // list (independent histograms, so their increment chains overlap). Two passes: count, then
+      // sum T[c] over the bins that were hit (each bin read once and cleared on the way, so the
+      // histograms are all-zero again for the next group). A short last group repeats its last
+      // candidate; the repeats are not stored.
       const std::uint64_t un = static_cast<std::uint64_t>(n);
       const std::uint64_t H_x = detail::entropy_q16(T, un, sum_tx);
-      for (int k = 0; k < K; ++k) {
-        const int d = order[std::size_t(k)];
-        std::fill(joint.begin(), joint.end(), 0);
-        std::fill(hy.begin(), hy.end(), 0);
-        std::uint64_t sum_txy = 0, sum_ty = 0;
-        for (const Run* r = r0; r != r1; ++r) {
-          const std::uint8_t* lrow = ref.row(r->y);
-          const std::uint8_t* brow = pr.bin.data() + std::size_t(r->y) * std::size_t(pr.stride);
-          for (int x = r->x0; x < r->x1; ++x) {
-            const int by = brow[base_of(x) + d];
-            const int bx = (lrow[x] * B) >> 8;
-            std::uint32_t& cxy = joint[std::size_t(bx * B + by)];
-            sum_txy += T[cxy + 1] - T[cxy];
-            ++cxy;
-            std::uint32_t& cy = hy[std::size_t(by)];
-            sum_ty += T[cy + 1] - T[cy];
-            ++cy;
+      const std::size_t BB = std::size_t(B) * std::size_t(B);
+      for (int k0 = 0; k0 < K; k0 += kNmiGroup) {
+        const std::uint8_t* bin[kNmiGroup];
+        for (int j = 0; j < kNmiGroup; ++j) bin[j] = pr.bin.data() + order[std::size_t(std::min(k0 + j, K - 1))];
+        for (const SegPixel& q : px) {
+          for (int j = 0; j < kNmiGroup; ++j) {
+            const int by = bin[j][q.off];
+            ++joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)];
+            ++hy[std::size_t(j * B + by)];
           }
         }
-        const std::uint64_t H_y = detail::entropy_q16(T, un, sum_ty);
-        const std::uint64_t H_xy = detail::entropy_q16(T, un, sum_txy);
-        std::uint32_t nmi = 0;
-        const std::uint64_t den = detail::isqrt64(H_x * H_y);  // Q16
-        if (den > 0 && H_x + H_y > H_xy) {
-          const std::uint64_t q = ((H_x + H_y - H_xy) << kQ16Shift) / den;
-          nmi = static_cast<std::uint32_t>(std::min<std::uint64_t>(q, kQ16One));
+        std::uint64_t sum_txy[kNmiGroup] = {}, sum_ty[kNmiGroup] = {};
+        for (const SegPixel& q : px) {
+          for (int j = 0; j < kNmiGroup; ++j) {
+            const int by = bin[j][q.off];
+            std::uint32_t& cxy = joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)];
+            sum_txy[j] += T[cxy];
+            cxy = 0;
+            std::uint32_t& cy = hy[std::size_t(j * B + by)];
+            sum_ty[j] += T[cy];
+            cy = 0;
+          }
         }
-        c.nmi[off + std::size_t(d)] = nmi;
-        c.nmi_valid[off + std::size_t(d)] = 1;
+        for (int j = 0; j < kNmiGroup && k0 + j < K; ++j) {
+          const int d = order[std::size_t(k0 + j)];
+          const std::uint64_t H_y = detail::entropy_q16(T, un, sum_ty[j]);
+          const std::uint64_t H_xy = detail::entropy_q16(T, un, sum_txy[j]);
+          std::uint32_t nmi = 0;
+          const std::uint64_t den = detail::isqrt64(H_x * H_y);  // Q16
+          if (den > 0 && H_x + H_y > H_xy) {
+            const std::uint64_t qn = ((H_x + H_y - H_xy) << kQ16Shift) / den;
+            nmi = static_cast<std::uint32_t>(std::min<std::uint64_t>(qn, kQ16One));
+          }
+          c.nmi[off + std::size_t(d)] = nmi;
+          c.nmi_valid[off + std::size_t(d)] = 1;
+        }
       }
     }
   }

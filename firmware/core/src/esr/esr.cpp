@@ -5,8 +5,9 @@
 // Sliding window: the block histogram moves along the row; each pixel entering or leaving changes
 // one bin c -> c +- 1 and the running sum by T[c +- 1] - T[c] (n*log2 n table), so a pixel costs
 // O(1) and an output pixel O(w) (one column in, one column out) instead of O(w^2) plus a pass over
-// all D bins for a recomputation. Vertical runs of equal disparity (the maps are piecewise
-// constant per segment) enter and leave as one step c -> c +- k, so in practice an output pixel
+// all D bins for a recomputation. Vertical runs of equal bin (the maps are piecewise constant per
+// segment; run lengths are precomputed once per map) enter and leave as one step c -> c +- k,
+// which telescopes to the same integer sum as k single steps, so in practice an output pixel
 // costs a few table reads. Rows are independent and run in parallel.
 #include <algorithm>
 #include <cmath>
@@ -20,6 +21,27 @@ namespace fs {
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
+  // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
+  // length of the vertical run of equal bins starting there, downwards (capped at the window).
+  // A column of a block is then entered or left in one table step per run.
+  ImageI16 bins(w, h);
+  ImageI16 run(w, h);
+  for (int y = h - 1; y >= 0; --y) {
+    const std::int16_t* d = disp.row(y);
+    std::int16_t* b = bins.row(y);
+    std::int16_t* rl = run.row(y);
+    for (int x = 0; x < w; ++x)
+      b[x] = d[x] == kInvalidDisp ? std::int16_t(-1)
+                                  : static_cast<std::int16_t>(std::min((d[x] + kDispScale / 2) >> kDispShift, max_disparity));
+    if (y == h - 1) {
+      std::fill(rl, rl + w, std::int16_t(1));
+      continue;
+    }
+    const std::int16_t* b1 = bins.row(y + 1);
+    const std::int16_t* rl1 = run.row(y + 1);
+    for (int x = 0; x < w; ++x)
+      rl[x] = b[x] == b1[x] ? static_cast<std::int16_t>(std::min<int>(rl1[x] + 1, window)) : std::int16_t(1);
+  }
   ImageI32 out(w, h, 0);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
@@ -28,17 +50,15 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
     const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
     std::vector<std::uint32_t> hist(std::size_t(max_disparity) + 1, 0);
     std::uint64_t n = 0, sum_t = 0;
-    // Adds (sign +1) or removes (-1) one column of the block. Disparity maps are piecewise
-    // constant, so equal vertical neighbours are moved as one run: c -> c + k in one table step.
+    // Adds (sign +1) or removes (-1) one column of the block, one vertical run at a time:
+    // c -> c +- k in one table step.
     auto add_col = [&](int x, int sign) {
       int yy = y0;
       while (yy <= y1) {
-        const std::int16_t d = disp.at(x, yy);
-        int k = 1;
-        while (yy + k <= y1 && disp.at(x, yy + k) == d) ++k;
+        const std::int16_t b = bins.at(x, yy);
+        const int k = std::min<int>(run.at(x, yy), y1 - yy + 1);
         yy += k;
-        if (d == kInvalidDisp) continue;
-        const int b = std::min((d + kDispScale / 2) >> kDispShift, max_disparity);  // nearest integer px
+        if (b < 0) continue;
         std::uint32_t& c = hist[std::size_t(b)];
         const auto uk = static_cast<std::uint32_t>(k);
         if (sign > 0) { sum_t += T[c + uk] - T[c]; c += uk; n += uk; }
