@@ -43,6 +43,7 @@ inline int resolve_threads(int requested) {
 inline void use_threads(int requested) {
 #if defined(FS_HAVE_OPENMP)
   omp_set_num_threads(resolve_threads(requested));
+  omp_set_max_active_levels(2);  // left/right sections, each with its own worker threads
 #else
   (void)requested;
 #endif

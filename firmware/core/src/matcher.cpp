@@ -1,6 +1,7 @@
 // The disparity pipeline of Section III, one line per stage (see stages.hpp for each stage).
 #include "fuzzystereo/matcher.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
@@ -83,13 +84,27 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
 #endif
     r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg);
   }
-  (void)seg_threads;
   clock.lap(Stage::Segmentation);
 
-  const SegmentCosts cost_l =                                                           // eq. (1)-(9)
-      compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, threads, scratch_[0].get());
-  const SegmentCosts cost_r =
-      compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, threads, scratch_[1].get());
+  // The two directions are independent: with two or more threads they run side by side, each
+  // with half of the threads (nested OpenMP, enabled by detail::use_threads).
+  SegmentCosts cost_l, cost_r;                                                          // eq. (1)-(9)
+  const int cost_threads = seg_threads == 2 ? std::max(1, detail::resolve_threads(threads) / 2) : threads;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel sections num_threads(seg_threads)
+#endif
+  {
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    cost_l = compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, cost_threads,
+                                   scratch_[0].get());
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    cost_r = compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads,
+                                   scratch_[1].get());
+  }
   clock.lap(Stage::Cost);
 
   r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA
