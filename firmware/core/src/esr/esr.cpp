@@ -106,13 +106,36 @@ ImageI16 block_mean(const ImageI16& disp, int window) {
 ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
                                       int max_disparity, ImageU8* replaced) {
   const int w = disp_lr.width, h = disp_lr.height;
-  const ImageI32 El = block_entropy(disp_lr, p.window, max_disparity);
-  const ImageI32 Er = block_entropy(disp_right, p.window, max_disparity);
-  const ImageI16 Ml = block_mean(disp_lr, p.window);
-  const ImageI16 Mr = block_mean(disp_right, p.window);
+  // The four block images are independent; rows of block_entropy are parallel inside.
+  ImageI32 El, Er;
+  ImageI16 Ml, Mr;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel sections
+#endif
+  {
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    El = block_entropy(disp_lr, p.window, max_disparity);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    Er = block_entropy(disp_right, p.window, max_disparity);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    Ml = block_mean(disp_lr, p.window);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp section
+#endif
+    Mr = block_mean(disp_right, p.window);
+  }
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out = disp_lr;
   if (replaced) *replaced = ImageU8(w, h, 0);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const std::int16_t d = disp_lr.at(x, y);

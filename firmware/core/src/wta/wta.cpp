@@ -23,6 +23,10 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   dec.score.assign(n, 0);
   dec.dc1.assign(n, 0);
   dec.dc2.assign(n, 0);
+  // Segments are independent (each writes only its own entries).
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
   for (std::size_t s = 0; s < n; ++s) {
     const std::size_t off = s * std::size_t(D);
     std::int64_t best = -1;
