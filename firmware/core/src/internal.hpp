@@ -49,6 +49,25 @@ inline void use_threads(int requested) {
 #endif
 }
 
+// Runs two independent jobs of one stage (left and right image), side by side when two or more
+// threads are allowed; each job may open its own parallel region (nested, see use_threads).
+template <class F, class G>
+void run_pair(int threads, F&& first, G&& second) {
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel sections num_threads(resolve_threads(threads) >= 2 ? 2 : 1)
+  {
+#pragma omp section
+    first();
+#pragma omp section
+    second();
+  }
+#else
+  (void)threads;
+  first();
+  second();
+#endif
+}
+
 // floor(sqrt(v)) for v < 2^62, exact.
 inline std::uint64_t isqrt64(std::uint64_t v) {
   auto r = static_cast<std::uint64_t>(std::sqrt(static_cast<double>(v)));

@@ -69,42 +69,21 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   const ImageU16 grad_r = gradient_magnitude(right);
   clock.lap(Stage::Gradient);
 
-  // The two segmentations are independent: one thread each when there are two.
-  const int seg_threads = detail::resolve_threads(threads) >= 2 ? 2 : 1;
-#if defined(FS_HAVE_OPENMP)
-#pragma omp parallel sections num_threads(seg_threads)
-#endif
-  {
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    r.seg_left = labels_left ? segmentation_from_labels(*labels_left) : slic_segment(left, p.seg);
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg);
-  }
+  detail::run_pair(
+      threads,
+      [&] { r.seg_left = labels_left ? segmentation_from_labels(*labels_left) : slic_segment(left, p.seg); },
+      [&] { r.seg_right = labels_right ? segmentation_from_labels(*labels_right) : slic_segment(right, p.seg); });
   clock.lap(Stage::Segmentation);
 
-  // The two directions are independent: with two or more threads they run side by side, each
-  // with half of the threads (nested OpenMP, enabled by detail::use_threads).
+  // The two directions run side by side with half of the threads each (one direction alone with
+  // a single thread).
   SegmentCosts cost_l, cost_r;                                                          // eq. (1)-(9)
-  const int cost_threads = seg_threads == 2 ? std::max(1, detail::resolve_threads(threads) / 2) : threads;
-#if defined(FS_HAVE_OPENMP)
-#pragma omp parallel sections num_threads(seg_threads)
-#endif
-  {
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    cost_l = compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, cost_threads,
-                                   scratch_[0].get());
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    cost_r = compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads,
-                                   scratch_[1].get());
-  }
+  const int nt = detail::resolve_threads(threads);
+  const int cost_threads = nt >= 2 ? nt / 2 : 1;
+  detail::run_pair(
+      threads,
+      [&] { cost_l = compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, cost_threads, scratch_[0].get()); },
+      [&] { cost_r = compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads, scratch_[1].get()); });
   clock.lap(Stage::Cost);
 
   r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA

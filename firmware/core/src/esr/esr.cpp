@@ -106,30 +106,12 @@ ImageI16 block_mean(const ImageI16& disp, int window) {
 ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
                                       int max_disparity, ImageU8* replaced) {
   const int w = disp_lr.width, h = disp_lr.height;
-  // The four block images are independent; rows of block_entropy are parallel inside.
+  // Left and right block images are independent (0 = the thread count set by the matcher).
   ImageI32 El, Er;
   ImageI16 Ml, Mr;
-#if defined(FS_HAVE_OPENMP)
-#pragma omp parallel sections
-#endif
-  {
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    El = block_entropy(disp_lr, p.window, max_disparity);
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    Er = block_entropy(disp_right, p.window, max_disparity);
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    Ml = block_mean(disp_lr, p.window);
-#if defined(FS_HAVE_OPENMP)
-#pragma omp section
-#endif
-    Mr = block_mean(disp_right, p.window);
-  }
+  detail::run_pair(
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity); Ml = block_mean(disp_lr, p.window); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity); Mr = block_mean(disp_right, p.window); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out = disp_lr;
   if (replaced) *replaced = ImageU8(w, h, 0);
