@@ -7,6 +7,8 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <algorithm>
+#include <vector>
 
 #include <toml++/toml.h>
 
@@ -45,8 +47,15 @@ struct FieldSpec {
   std::string type;
   bool has_min = false, has_max = false, odd = false;
   double min = 0, max = 0;
+  std::vector<std::string> choices;  // type == "string": allowed values (empty = any)
   std::string unit, doc;
 };
+
+// Schema fields in file order (for config_to_toml) and by name.
+std::vector<std::string>& schema_order() {
+  static std::vector<std::string> order;
+  return order;
+}
 
 const std::map<std::string, FieldSpec>& schema() {
   static const std::map<std::string, FieldSpec> s = [] {
@@ -60,9 +69,13 @@ const std::map<std::string, FieldSpec>& schema() {
         if (auto v = f["min"].value<double>()) { spec.has_min = true; spec.min = *v; }
         if (auto v = f["max"].value<double>()) { spec.has_max = true; spec.max = *v; }
         spec.odd = f["odd"].value_or(false);
+        if (const toml::array* c = f["choices"].as_array())
+          for (auto&& e : *c) spec.choices.push_back(e.value_or(std::string()));
         spec.unit = f["unit"].value_or(std::string());
         spec.doc = f["doc"].value_or(std::string());
-        m[std::string(sec.str()) + "." + std::string(key.str())] = spec;
+        const std::string name = std::string(sec.str()) + "." + std::string(key.str());
+        m[name] = spec;
+        schema_order().push_back(name);
       }
     }
     return m;
@@ -77,6 +90,12 @@ std::string fmt_num(double v) {
 }
 
 std::string range_text(const FieldSpec& s) {
+  if (s.type == "string") {
+    if (s.choices.empty()) return "string";
+    std::string r = "one of";
+    for (std::size_t i = 0; i < s.choices.size(); ++i) r += (i ? ", \"" : " \"") + s.choices[i] + "\"";
+    return r;
+  }
   std::string r = s.type;
   if (s.has_min || s.has_max) r += " in [" + fmt_num(s.min) + ", " + fmt_num(s.max) + "]";
   if (s.odd) r += ", odd";
@@ -84,8 +103,7 @@ std::string range_text(const FieldSpec& s) {
   return r;
 }
 
-// Validated values by dotted name.
-using Values = std::map<std::string, double>;
+using Values = ConfigValues;
 
 void collect(const toml::table& t, const std::string& source, Values& out) {
   const auto& sch = schema();
@@ -99,7 +117,15 @@ void collect(const toml::table& t, const std::string& source, Values& out) {
       if (it == sch.end()) throw ConfigError(source + ": unknown field '" + name + "' (see common/config/schema.toml)");
       const FieldSpec& s = it->second;
       double v = 0;
-      if (s.type == "bool") {
+      if (s.type == "string") {
+        if (!node.is_string()) throw ConfigError(source + ": field '" + name + "' must be a string (" + range_text(s) + ")");
+        const std::string sv = node.as_string()->get();
+        if (!s.choices.empty() && std::find(s.choices.begin(), s.choices.end(), sv) == s.choices.end())
+          throw ConfigError(source + ": field '" + name + "' = \"" + sv + "\" is not valid: " + range_text(s) + " (" +
+                            s.doc + ")");
+        out.strs[name] = sv;
+        continue;
+      } else if (s.type == "bool") {
         if (!node.is_boolean()) throw ConfigError(source + ": field '" + name + "' must be true or false");
         v = node.as_boolean()->get() ? 1 : 0;
       } else if (s.type == "int") {
@@ -115,47 +141,102 @@ void collect(const toml::table& t, const std::string& source, Values& out) {
           (s.odd && std::fmod(std::fabs(v), 2.0) != 1.0))
         throw ConfigError(source + ": field '" + name + "' = " + fmt_num(v) + " is out of range: valid " + range_text(s) +
                           " (" + s.doc + ")");
-      out[name] = v;
+      out.nums[name] = v;
     }
   }
 }
 
 MatcherParams to_params(const Values& v) {
-  auto i = [&](const char* k) { return static_cast<int>(v.at(k)); };
+  auto i = [&](const char* k) { return v.integer(k); };
   MatcherParams p;
   p.seg.region_size = i("segmentation.region_size");
   p.seg.compactness = i("segmentation.compactness");
   p.seg.iterations = i("segmentation.iterations");
   p.seg.min_segment_pct = i("segmentation.min_segment_pct");
   p.cost.max_disparity = i("cost.max_disparity");
-  p.cost.alpha = v.at("cost.alpha");
+  p.cost.alpha = v.num("cost.alpha");
   p.cost.nmi_bins = i("cost.nmi_bins");
   p.cost.nmi_candidates = i("cost.nmi_candidates");
-  p.cost.subpixel = v.at("cost.subpixel") != 0;
+  p.cost.subpixel = v.flag("cost.subpixel");
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.lr.max_diff = i("lr_check.max_diff");
-  p.esr.enabled = v.at("esr.enabled") != 0;
+  p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
-  p.esr.tau = v.at("esr.tau");
+  p.esr.tau = v.num("esr.tau");
   p.runtime.threads = i("runtime.threads");
   return p;
 }
 
 }  // namespace
 
-MatcherParams parse_matcher_config(const std::string& toml_text, const std::string& source_name) {
-  Values v;
-  collect(parse_toml(fs_embedded_default_toml, "default.toml"), "default.toml", v);
-  for (const auto& [name, spec] : schema())
-    if (!v.count(name)) throw ConfigError("default.toml: field '" + name + "' is missing (build error)");
-  if (!toml_text.empty()) collect(parse_toml(toml_text, source_name), source_name, v);
-  return to_params(v);
+double ConfigValues::num(const std::string& key) const {
+  auto it = nums.find(key);
+  if (it == nums.end()) throw ConfigError("config field '" + key + "' is not a numeric schema field (build error)");
+  return it->second;
+}
+int ConfigValues::integer(const std::string& key) const { return static_cast<int>(num(key)); }
+bool ConfigValues::flag(const std::string& key) const { return num(key) != 0.0; }
+const std::string& ConfigValues::str(const std::string& key) const {
+  auto it = strs.find(key);
+  if (it == strs.end()) throw ConfigError("config field '" + key + "' is not a string schema field (build error)");
+  return it->second;
 }
 
-MatcherParams load_matcher_config(const std::string& path) {
-  if (path.empty()) return parse_matcher_config("", "default.toml");
-  return parse_matcher_config(read_text_file(path, "config file"), path);
+Config parse_config(const std::string& toml_text, const std::string& source_name) {
+  Config c;
+  collect(parse_toml(fs_embedded_default_toml, "default.toml"), "default.toml", c.values);
+  for (const auto& [name, spec] : schema())
+    if (!c.values.nums.count(name) && !c.values.strs.count(name))
+      throw ConfigError("default.toml: field '" + name + "' is missing (build error)");
+  if (!toml_text.empty()) collect(parse_toml(toml_text, source_name), source_name, c.values);
+  c.values.source = toml_text.empty() ? "default.toml" : source_name;
+  c.matcher = to_params(c.values);
+  return c;
+}
+
+Config load_config(const std::string& path) {
+  if (path.empty()) return parse_config("", "default.toml");
+  return parse_config(read_text_file(path, "config file"), path);
+}
+
+MatcherParams parse_matcher_config(const std::string& toml_text, const std::string& source_name) {
+  return parse_config(toml_text, source_name).matcher;
+}
+
+MatcherParams load_matcher_config(const std::string& path) { return load_config(path).matcher; }
+
+std::string config_to_toml(const ConfigValues& v) {
+  schema();
+  std::ostringstream s;
+  std::string section;
+  for (const std::string& name : schema_order()) {
+    const std::string sec = name.substr(0, name.find('.'));
+    const std::string key = name.substr(name.find('.') + 1);
+    if (sec != section) {
+      s << (section.empty() ? "" : "\n") << "[" << sec << "]\n";
+      section = sec;
+    }
+    const FieldSpec& f = schema().at(name);
+    s << key << " = ";
+    if (f.type == "string") {
+      s << '"';
+      for (char ch : v.str(name)) {
+        if (ch == '"' || ch == '\\') s << '\\';
+        s << ch;
+      }
+      s << '"';
+    } else if (f.type == "bool") {
+      s << (v.flag(name) ? "true" : "false");
+    } else if (f.type == "int") {
+      s << static_cast<long long>(v.num(name));
+    } else {
+      const double x = v.num(name);
+      s << fmt_num(x) << (x == std::floor(x) ? ".0" : "");
+    }
+    s << "\n";
+  }
+  return s.str();
 }
 
 std::string config_to_toml(const MatcherParams& p) {

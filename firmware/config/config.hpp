@@ -2,6 +2,7 @@
 // once, with an error that names the field (or file) and its valid range; the core assumes valid
 // parameters.
 #pragma once
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -15,6 +16,33 @@ class ConfigError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+// Every validated field of the config by dotted name ("section.field"). Numbers (int, float, bool
+// as 0/1) and strings live apart. Each subsystem turns the fields it owns into its own parameter
+// struct (e.g. MatcherParams below); the accessors throw ConfigError for a name that is not in the
+// schema (a build error, never bad user input).
+struct ConfigValues {
+  std::map<std::string, double> nums;
+  std::map<std::string, std::string> strs;
+  std::string source;  // file the overrides came from ("default.toml" when none)
+
+  double num(const std::string& key) const;
+  int integer(const std::string& key) const;
+  bool flag(const std::string& key) const;
+  const std::string& str(const std::string& key) const;
+};
+
+struct Config {
+  ConfigValues values;
+  MatcherParams matcher;
+};
+
+// Defaults (embedded common/config/default.toml) overlaid with the file at `path` (if not empty):
+// the one validator used at startup and for a config pushed over the link.
+Config load_config(const std::string& path);
+Config parse_config(const std::string& toml_text, const std::string& source_name);
+// Every field, in schema order, as TOML text.
+std::string config_to_toml(const ConfigValues& v);
 
 // Defaults (common/config/default.toml, embedded in the binary) overlaid with the file at `path`
 // (if not empty). Unknown keys, wrong types and out-of-range values throw ConfigError.

@@ -21,7 +21,7 @@ from typing import Any
 from . import paths
 from .errors import FatalError
 
-_TYPES = {"int": int, "float": float, "bool": bool}
+_TYPES = {"int": int, "float": float, "bool": bool, "string": str}
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,7 @@ class FieldSpec:
     min: float | None = None
     max: float | None = None
     odd: bool = False
+    choices: tuple[str, ...] = ()
     unit: str = ""
     doc: str = ""
 
@@ -42,6 +43,8 @@ class FieldSpec:
     def range_text(self) -> str:
         if self.type == "bool":
             return "true or false"
+        if self.type == "string":
+            return "one of " + ", ".join(repr(c) for c in self.choices) if self.choices else "a string"
         lo = "-inf" if self.min is None else _fmt(self.min)
         hi = "inf" if self.max is None else _fmt(self.max)
         text = f"{'an odd integer' if self.odd else 'an integer' if self.type == 'int' else 'a number'} in [{lo}, {hi}]"
@@ -57,6 +60,12 @@ class FieldSpec:
         if self.type == "bool":
             if not isinstance(value, bool):
                 raise bad("is not a boolean")
+            return value
+        if self.type == "string":
+            if not isinstance(value, str):
+                raise bad("is not a string")
+            if self.choices and value not in self.choices:
+                raise bad("is not a valid choice")
             return value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise bad("is not a number")
@@ -98,8 +107,8 @@ def load_schema(path: str | Path | None = None) -> dict[str, dict[str, FieldSpec
         for name, spec in fields.items():
             key = f"{section}.{name}"
             if not isinstance(spec, dict) or spec.get("type") not in _TYPES:
-                raise FatalError(f"{path}: [{key}] needs type = \"int\" | \"float\" | \"bool\"")
-            extra = sorted(set(spec) - {"type", "min", "max", "odd", "unit", "doc"})
+                raise FatalError(f"{path}: [{key}] needs type = \"int\" | \"float\" | \"bool\" | \"string\"")
+            extra = sorted(set(spec) - {"type", "min", "max", "odd", "choices", "unit", "doc"})
             if extra:
                 raise FatalError(f"{path}: [{key}] has unknown schema key(s) {', '.join(extra)}")
             schema.setdefault(section, {})[name] = FieldSpec(
@@ -109,6 +118,7 @@ def load_schema(path: str | Path | None = None) -> dict[str, dict[str, FieldSpec
                 min=spec.get("min"),
                 max=spec.get("max"),
                 odd=bool(spec.get("odd", False)),
+                choices=tuple(str(c) for c in spec.get("choices", ())),
                 unit=str(spec.get("unit", "")),
                 doc=str(spec.get("doc", "")),
             )
@@ -195,6 +205,9 @@ def dumps_toml(values: dict[str, dict[str, Any]]) -> str:
                 text = "true" if value else "false"
             elif isinstance(value, float):
                 text = repr(value)
+            elif isinstance(value, str):
+                text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
             else:
                 text = str(value)
             lines.append(f"{key} = {text}")

@@ -24,7 +24,14 @@ struct Image {
   bool empty() const { return data.empty(); }
 };
 
+// Colour pixel, R G B order (OpenCV's BGR Mats are converted at the app edge).
+struct Rgb8 {
+  std::uint8_t r = 0, g = 0, b = 0;
+  friend bool operator==(const Rgb8&, const Rgb8&) = default;
+};
+
 using ImageU8 = Image<std::uint8_t>;
+using ImageRgb8 = Image<Rgb8>;
 using ImageU16 = Image<std::uint16_t>;
 using ImageI16 = Image<std::int16_t>;
 using ImageI32 = Image<std::int32_t>;
