@@ -480,6 +480,21 @@ def _compare_dataset(dataset_dir: Path, tolerances: Path | None, report: Path | 
     console.print(f"all {len(frames)} frames within tolerance")
 
 
+# ---- run report -------------------------------------------------------------------------------
+
+
+@app.command("report", short_help="HTML report of a robot run record (fuzzystereo run --record DIR).")
+@click.argument("run_dir", type=click.Path(path_type=Path, file_okay=False))
+@click.option("--out", type=_path, default=None, help="HTML file (default RUN_DIR/report.html).")
+@click.option("--frames", "max_frames", type=click.IntRange(2, 50), default=6, show_default=True, help="Annotated frames shown.")
+def report_cmd(run_dir: Path, out: Path | None, max_frames: int) -> None:
+    """Trajectory plot, annotated frames and stage timings of one run, as a single HTML file."""
+    from .runreport import write_report
+
+    path = write_report(run_dir, out or run_dir / "report.html", max_frames=max_frames)
+    console.print(f"report: {path}")
+
+
 # ---- main -----------------------------------------------------------------------------------
 
 

@@ -1,0 +1,224 @@
+"""HTML report of one robot run (``fuzzystereo run --record DIR`` / ``make demo``).
+
+Reads the run record (docs/formats.md, "Run record"):
+
+- ``DIR/run.json``: source, start, goal, robot radius, the world's obstacles (simulator runs),
+  the result and stage-timing statistics;
+- ``DIR/frames.jsonl``: one JSON object per frame (pose, command, detections, tracks, stage ms);
+- ``DIR/frames/NNNNNN_*.png``: annotated snapshots of some frames.
+
+and writes one self-contained HTML file (every picture an inline PNG): the trajectory plot
+(estimated and true robot path, obstacles with their motion, track estimates, start and goal),
+the annotated frames, the stage timings and the per-frame speed and distance plots.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from .errors import FatalError
+
+
+def load_run(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """(run.json, frames) of a run record; FatalError naming the file when missing or malformed."""
+    run_dir = Path(run_dir)
+    run_file = run_dir / "run.json"
+    frames_file = run_dir / "frames.jsonl"
+    if not run_file.is_file():
+        raise FatalError(f"{run_file}: not found (is {run_dir} a 'fuzzystereo run --record' directory?)")
+    try:
+        run = json.loads(run_file.read_text())
+    except json.JSONDecodeError as exc:
+        raise FatalError(f"{run_file}: not valid JSON: {exc}") from exc
+    frames: list[dict[str, Any]] = []
+    if frames_file.is_file():
+        for n, line in enumerate(frames_file.read_text().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                frames.append(json.loads(line))
+            except json.JSONDecodeError:
+                # A run cut off mid-write (power loss, SIGKILL) leaves a partial last line: keep
+                # everything before it, refuse corruption anywhere else.
+                if n == len(frames_file.read_text().splitlines()):
+                    break
+                raise FatalError(f"{frames_file}:{n}: not valid JSON") from None
+    return run, frames
+
+
+def _fig_png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _file_png(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def _obstacle_patch(o: dict[str, Any], t: float, **style):
+    from matplotlib.patches import Circle, Polygon
+
+    x = o.get("x", 0.0) + o.get("vx", 0.0) * t
+    y = o.get("y", 0.0) + o.get("vy", 0.0) * t
+    if o.get("shape") == "box":
+        L, W = o.get("length", 0.5), o.get("width", 0.5)
+        c, s = math.cos(o.get("yaw", 0.0)), math.sin(o.get("yaw", 0.0))
+        pts = [(x + c * dx - s * dy, y + s * dx + c * dy) for dx, dy in ((L / 2, W / 2), (-L / 2, W / 2), (-L / 2, -W / 2), (L / 2, -W / 2))]
+        return Polygon(pts, closed=True, **style)
+    return Circle((x, y), o.get("radius", 0.25), **style)
+
+
+def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 6.5))
+    t_end = frames[-1]["t"] if frames else 0.0
+    for o in run.get("world", {}).get("obstacles", []):
+        moving = abs(o.get("vx", 0.0)) + abs(o.get("vy", 0.0)) > 1e-9
+        if moving:
+            ax.add_patch(_obstacle_patch(o, 0.0, facecolor="none", edgecolor="0.5", linestyle="--"))
+            ax.add_patch(_obstacle_patch(o, t_end, facecolor="0.6", edgecolor="k", alpha=0.8))
+            ax.annotate("", xy=(o["x"] + o["vx"] * t_end, o["y"] + o["vy"] * t_end), xytext=(o["x"], o["y"]),
+                        arrowprops=dict(arrowstyle="->", color="0.4"))
+        else:
+            ax.add_patch(_obstacle_patch(o, 0.0, facecolor="0.35", edgecolor="k"))
+    # Track estimates: confirmed tracks' positions over the run, one colour per track id.
+    cmap = plt.get_cmap("tab10")
+    tracks: dict[int, list[tuple[float, float]]] = {}
+    for f in frames:
+        for tr in f.get("tracks", []):
+            if tr.get("confirmed", True):
+                tracks.setdefault(int(tr["id"]), []).append((tr["p"][0], tr["p"][1]))
+    for i, (tid, pts) in enumerate(sorted(tracks.items())):
+        xs, ys = zip(*pts)
+        ax.scatter(xs, ys, s=4, color=cmap(i % 10), alpha=0.5, label="tracks" if i == 0 else None)
+    if frames:
+        if all("true_pose" in f for f in frames):
+            tx = [f["true_pose"][0] for f in frames]
+            ty = [f["true_pose"][1] for f in frames]
+            ax.plot(tx, ty, "-", color="tab:blue", lw=2, label="robot (true)")
+        ex = [f["pose"][0] for f in frames]
+        ey = [f["pose"][1] for f in frames]
+        ax.plot(ex, ey, "--", color="tab:orange", lw=1.2, label="robot (odometry)")
+        last = frames[-1].get("true_pose", frames[-1]["pose"])
+        from matplotlib.patches import Circle
+
+        ax.add_patch(Circle((last[0], last[1]), run.get("robot_radius_m", 0.2), fill=False, color="tab:blue"))
+    start = run.get("start")
+    goal = run.get("goal")
+    if start:
+        ax.plot(start[0], start[1], "o", color="tab:green", ms=9, label="start")
+    if goal:
+        ax.plot(goal[0], goal[1], "*", color="tab:red", ms=14, label="goal")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m] (forward)")
+    ax.set_ylabel("y [m] (left)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.autoscale_view()
+    status = run.get("result", {}).get("status", "?")
+    ax.set_title(f"{run.get('scenario', '')}  —  {status}")
+    return fig
+
+
+def series_figure(frames: list[dict[str, Any]]):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 4.5), sharex=True)
+    t = [f["t"] for f in frames]
+    a1.plot(t, [f.get("cmd", [0, 0])[0] for f in frames], label="v [m/s]")
+    a1.plot(t, [f.get("cmd", [0, 0])[1] for f in frames], label="ω [rad/s]")
+    a1.legend(fontsize=8)
+    a1.grid(True, alpha=0.3)
+    nearest = [min((d["distance_m"] for d in f.get("detections", [])), default=float("nan")) for f in frames]
+    a2.plot(t, nearest, ".", ms=3, color="tab:red", label="nearest detection [m]")
+    a2.set_xlabel("t [s]")
+    a2.legend(fontsize=8)
+    a2.grid(True, alpha=0.3)
+    return fig
+
+
+def timing_figure(run: dict[str, Any]):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stats = run.get("timing_ms", {})
+    names = list(stats)
+    fig, ax = plt.subplots(figsize=(8, 0.45 * max(len(names), 2) + 0.8))
+    med = [stats[n].get("median", 0.0) for n in names]
+    p90 = [stats[n].get("p90", 0.0) for n in names]
+    ax.barh(names, p90, color="0.8", label="p90")
+    ax.barh(names, med, color="tab:blue", label="median")
+    ax.invert_yaxis()
+    ax.set_xlabel("ms per frame")
+    ax.legend(fontsize=8)
+    ax.grid(True, axis="x", alpha=0.3)
+    return fig
+
+
+def write_report(run_dir: Path, out: Path, max_frames: int = 6) -> Path:
+    run, frames = load_run(run_dir)
+    run_dir = Path(run_dir)
+    res = run.get("result", {})
+    rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(_fmt(v))}</td></tr>" for k, v in res.items())
+    stats = run.get("timing_ms", {})
+    trows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{v.get('median', 0):.1f}</td><td>{v.get('p90', 0):.1f}</td><td>{v.get('max', 0):.1f}</td></tr>"
+        for k, v in stats.items()
+    )
+    snaps = sorted((run_dir / "frames").glob("*_overlay.png")) if (run_dir / "frames").is_dir() else []
+    if len(snaps) > max_frames:
+        idx = [round(i * (len(snaps) - 1) / (max_frames - 1)) for i in range(max_frames)]
+        snaps = [snaps[i] for i in idx]
+    frame_html = ""
+    for s in snaps:
+        stem = s.name[: -len("_overlay.png")]
+        disp = s.with_name(stem + "_disp.png")
+        frame_html += f"<figure><img src='{_file_png(s)}'>"
+        if disp.is_file():
+            frame_html += f"<img src='{_file_png(disp)}'>"
+        frame_html += f"<figcaption>frame {html.escape(stem)}: obstacles boxed red (near) / green (mid) / blue (far), disparity TURBO</figcaption></figure>"
+    parts = [
+        "<!doctype html><meta charset='utf-8'><title>fuzzystereo run</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}td,th{padding:2px 8px;text-align:left}"
+        "img{max-width:100%;margin:2px}figure{margin:8px 0}</style>",
+        f"<h1>fuzzystereo run — {html.escape(str(run.get('scenario', run.get('source', ''))))}</h1>",
+        f"<p>source <code>{html.escape(str(run.get('source', '')))}</code>, {len(frames)} frames</p>",
+        f"<h2>Result</h2><table>{rows}</table>",
+        f"<h2>Trajectory</h2><img src='{_fig_png(trajectory_figure(run, frames))}'>",
+    ]
+    if frames:
+        parts.append(f"<h2>Commands and nearest obstacle</h2><img src='{_fig_png(series_figure(frames))}'>")
+    parts.append("<h2>Stage timings</h2><table><tr><th>stage</th><th>median ms</th><th>p90 ms</th><th>max ms</th></tr>" + trows + "</table>")
+    if stats:
+        parts.append(f"<img src='{_fig_png(timing_figure(run))}'>")
+    if frame_html:
+        parts.append("<h2>Annotated frames</h2>" + frame_html)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(parts))
+    return out
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.3f}"
+    return str(v)
