@@ -6,6 +6,8 @@
 //   Middlebury 2005-6  {ThirdSize,HalfSize,FullSize}/<scene>/{view1,view5}.png + disp1.png
 //                      (stored value = full-size disparity, so /3, /2, /1)
 //   Middlebury 2014    MiddEval3/training{Q,H,F}/<scene>/{im0,im1}.png + disp0GT.pfm + calib.txt
+//   synthetic          fuzzystereo_sim.json + training/ in the KITTI 2015 layout (`fuzzystereo sim
+//                      generate`, docs/simulator.md); search range from the marker's max_disparity
 #include "dataset.hpp"
 
 #include <algorithm>
@@ -21,6 +23,7 @@
 #include <optional>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "io.hpp"
@@ -45,7 +48,10 @@ constexpr const char* kLayoutsLookedFor =
     "KITTI 2015 (image_2, image_3, disp_occ_0), "
     "Middlebury 2001-3 (im3/im4 + disp3.pgm, im2/im6 + disp2.pgm|disp2.png), "
     "Middlebury 2005-6 ({ThirdSize,HalfSize,FullSize}/<scene>/view1, view5, disp1.png), "
-    "Middlebury 2014 (MiddEval3/training{Q,H,F}/<scene>/im0, im1, calib.txt, disp0GT.pfm)";
+    "Middlebury 2014 (MiddEval3/training{Q,H,F}/<scene>/im0, im1, calib.txt, disp0GT.pfm), "
+    "synthetic (fuzzystereo_sim.json + training/image_2, image_3, disp_occ_0)";
+
+constexpr const char* kSimMarker = "fuzzystereo_sim.json";
 
 constexpr int kMaxScanDepth = 6;
 
@@ -262,9 +268,37 @@ std::optional<std::vector<Frame>> detect_middlebury2014(const stdfs::path& d) {
   return std::vector<Frame>{std::move(f)};
 }
 
+// A generated synthetic set: `d` holds the marker (then its training/ holds the frames), or `d` is
+// that training/ folder.
+std::optional<std::vector<Frame>> detect_synthetic(const stdfs::path& d) {
+  stdfs::path marker = d / kSimMarker, training = d / "training";
+  if (!is_file(marker) && d.filename() == "training" && is_file(d.parent_path() / kSimMarker)) {
+    marker = d.parent_path() / kSimMarker;
+    training = d;
+  }
+  if (!is_file(marker)) return std::nullopt;
+  int max_disp = 0;
+  try {
+    const auto j = nlohmann::json::parse(read_text(marker));
+    max_disp = j.at("max_disparity").get<int>();
+  } catch (const nlohmann::json::exception& e) {
+    throw UserError("synthetic set marker '" + marker.string() + "' is not valid: " + e.what());
+  }
+  if (max_disp < 16 || max_disp % 16 != 0)
+    throw UserError("synthetic set marker '" + marker.string() + "': max_disparity = " + std::to_string(max_disp) +
+                    " is not valid (a multiple of 16, >= 16)");
+  auto frames = detect_kitti2015(training);
+  if (!frames) return std::vector<Frame>{};
+  for (auto& f : *frames) {
+    f.set = "synthetic";
+    f.max_disparity = max_disp;
+  }
+  return frames;
+}
+
 void scan(const stdfs::path& d, int depth, std::vector<Frame>& out) {
   using Detector = std::optional<std::vector<Frame>> (*)(const stdfs::path&);
-  static constexpr std::array<Detector, 5> kDetectors{detect_kitti2015, detect_kitti2012, detect_middlebury2014,
+  static constexpr std::array<Detector, 6> kDetectors{detect_synthetic, detect_kitti2015, detect_kitti2012, detect_middlebury2014,
                                                       detect_middlebury2005_6, detect_middlebury2001_3};
   for (const Detector det : kDetectors) {
     if (auto frames = det(d)) {

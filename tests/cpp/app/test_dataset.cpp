@@ -223,6 +223,38 @@ TEST(Dataset, AcceptsOneSetOrOneSceneFolder) {
   EXPECT_EQ(motor[0].set, "middlebury2014-Q");
 }
 
+// `fuzzystereo sim generate` layout: KITTI 2015 folders under training/ plus the marker, which
+// makes the set "synthetic" with the marker's search range — from the root, the training/ folder
+// or a parent; a bad marker is a user error naming it.
+TEST(Dataset, SyntheticSetFromMarker) {
+  TempDir tmp;
+  const auto root = tmp.path() / "sim";
+  const auto tr = root / "training";
+  write(tr / "image_2" / "000000_10.png", colour(8, 6));
+  write(tr / "image_3" / "000000_10.png", colour(8, 6));
+  write(tr / "disp_occ_0" / "000000_10.png", gt_one<std::uint16_t>(8, 6, CV_16UC1, 3 * 256));
+  write_text(tr / "calib_cam_to_cam" / "000000.txt",
+             "P_rect_02: 420 0 319.5 0 0 420 179.5 0 0 0 1 0\nP_rect_03: 420 0 319.5 -50.4 0 420 179.5 0 0 0 1 0\n");
+  write_text(root / "fuzzystereo_sim.json", R"({"format": "fuzzystereo-sim", "count": 1, "max_disparity": 80})");
+  for (const auto& dir : {tmp.path(), root, tr}) {
+    const auto frames = fs::app::discover_dataset(dir.string());
+    ASSERT_EQ(frames.size(), 1u) << dir;
+    EXPECT_EQ(frames[0].set, "synthetic") << dir;
+    EXPECT_EQ(frames[0].max_disparity, 80);
+    EXPECT_NEAR(frames[0].calib.baseline_m, 0.12, 1e-12);
+    expect_gt(frames[0], 3.0f);
+  }
+  write_text(root / "fuzzystereo_sim.json", R"({"count": 1, "max_disparity": 70})");
+  try {
+    fs::app::discover_dataset(root.string());
+    FAIL() << "expected fs::UserError";
+  } catch (const fs::UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("max_disparity = 70"), std::string::npos) << e.what();
+  }
+  write_text(root / "fuzzystereo_sim.json", "{ not json");
+  EXPECT_THROW(fs::app::discover_dataset(root.string()), fs::UserError);
+}
+
 TEST(Dataset, KittiGreyFallbackWithoutColourFolders) {
   TempDir tmp;
   const auto k12 = tmp.path() / "training";

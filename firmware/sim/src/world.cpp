@@ -1,0 +1,471 @@
+// Ray-cast renderer and ground truth of the synthetic stereo world (docs/simulator.md).
+//
+// Per pixel and camera: n x n supersampled rays (colour), plus for the left camera one ray through
+// the pixel centre that gives the exact ground truth (disparity f*B/Z, masks, obstacle id). Rays
+// are not normalised: dir = Xc*(u-cx)/f + Yc*(v-cy)/f + Zc, so the ray parameter at a hit IS the
+// depth Z along the optical axis. Surfaces: the ground plane z = 0 up to render.far_m horizontal
+// range, oriented boxes and vertical cylinders; Lambert shading with sun + ambient, a haze that
+// fades the ground into the horizon colour at far_m (so the cut-off is invisible), sky beyond.
+#include "fuzzystereo/sim/world.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "sim_internal.hpp"
+
+#if defined(FS_HAVE_OPENMP)
+#include <omp.h>
+#endif
+
+namespace fs::sim {
+namespace {
+
+using detail::Color;
+using detail::Vec3;
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+constexpr double kEps = 1e-9;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kMaxSub = 4;  // largest render.supersample (scene.cpp)
+
+struct CameraFrame {
+  Vec3 origin, xc, yc, zc;  // optical centre and axes (X right, Y down, Z forward) in world
+};
+
+// Camera frames of the left (0) and right (1) camera for a robot pose.
+CameraFrame camera_frame(const CameraSpec& c, const Pose2& pose, int cam) {
+  const double p = c.pitch_deg * kDeg;
+  const Vec3 f{std::cos(pose.yaw_rad), std::sin(pose.yaw_rad), 0.0};
+  const Vec3 up{0.0, 0.0, 1.0};
+  CameraFrame cf;
+  cf.xc = {std::sin(pose.yaw_rad), -std::cos(pose.yaw_rad), 0.0};
+  cf.zc = std::cos(p) * f - std::sin(p) * up;
+  cf.yc = (-std::sin(p)) * f - std::cos(p) * up;
+  cf.origin = Vec3{pose.x_m, pose.y_m, c.height_m} + (cam == 1 ? c.baseline_m : 0.0) * cf.xc;
+  return cf;
+}
+
+// An obstacle placed at render time t, with its screen bounds per camera.
+struct Placed {
+  int index = 0;
+  const ObstacleSpec* spec = nullptr;
+  Vec3 base;          // centre of the footprint at height z_m
+  double c = 1, s = 0;  // cos/sin of yaw
+  double hx = 0, hy = 0, h = 0, r = 0;
+  bool cyl = false;
+  detail::Color tint;
+  std::uint64_t seed = 0;
+  double u0[2], u1[2], v0[2], v1[2];  // sample-space bounds per camera (empty when u0 > u1)
+};
+
+struct Hit {
+  double t = kInf;  // depth Z [m]
+  int what = -2;    // -2 sky, -1 ground, >= 0 index into placed
+  Vec3 n;           // world normal
+  double s = 0, tt = 0;  // surface coordinates [m] (obstacles)
+  int face = 0;
+};
+
+Vec3 to_local(const Placed& o, Vec3 v) { return {o.c * v.x + o.s * v.y, -o.s * v.x + o.c * v.y, v.z}; }
+Vec3 to_world(const Placed& o, Vec3 v) { return {o.c * v.x - o.s * v.y, o.s * v.x + o.c * v.y, v.z}; }
+
+// Ray / oriented box (slab test in the box frame, origin at the box centre).
+void intersect_box(const Placed& o, int idx, Vec3 org, Vec3 dir, Hit& best) {
+  const Vec3 lo = to_local(o, org - o.base) - Vec3{0, 0, o.h * 0.5};
+  const Vec3 ld = to_local(o, dir);
+  const double half[3] = {o.hx, o.hy, o.h * 0.5};
+  const double po[3] = {lo.x, lo.y, lo.z}, pd[3] = {ld.x, ld.y, ld.z};
+  double tnear = -kInf, tfar = kInf;
+  int axis = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (std::fabs(pd[i]) < kEps) {
+      if (std::fabs(po[i]) > half[i]) return;
+      continue;
+    }
+    double t1 = (-half[i] - po[i]) / pd[i], t2 = (half[i] - po[i]) / pd[i];
+    if (t1 > t2) std::swap(t1, t2);
+    if (t1 > tnear) { tnear = t1; axis = i; }
+    tfar = std::min(tfar, t2);
+  }
+  if (tnear > tfar || tnear <= 1e-6 || tnear >= best.t) return;  // camera inside the box: not drawn
+  const double sign = pd[axis] > 0 ? -1.0 : 1.0;
+  const Vec3 p = lo + tnear * ld;
+  Vec3 ln{0, 0, 0};
+  best.t = tnear;
+  best.what = idx;
+  best.face = axis * 2 + (sign > 0 ? 1 : 0);
+  const double z_from_base = p.z + o.h * 0.5;
+  if (axis == 0) { ln.x = sign; best.s = p.y; best.tt = z_from_base; }
+  else if (axis == 1) { ln.y = sign; best.s = p.x; best.tt = z_from_base; }
+  else { ln.z = sign; best.s = p.x; best.tt = p.y; }
+  best.n = to_world(o, ln);
+}
+
+// Ray / vertical capped cylinder (side, top and bottom discs), in the obstacle frame.
+void intersect_cylinder(const Placed& o, int idx, Vec3 org, Vec3 dir, Hit& best) {
+  const Vec3 lo = to_local(o, org - o.base);
+  const Vec3 ld = to_local(o, dir);
+  const double a = ld.x * ld.x + ld.y * ld.y;
+  const double b = 2.0 * (lo.x * ld.x + lo.y * ld.y);
+  const double cc = lo.x * lo.x + lo.y * lo.y - o.r * o.r;
+  if (a > kEps) {
+    const double disc = b * b - 4.0 * a * cc;
+    if (disc >= 0.0) {
+      const double t0 = (-b - std::sqrt(disc)) / (2.0 * a);
+      if (t0 > 1e-6 && t0 < best.t) {
+        const Vec3 p = lo + t0 * ld;
+        if (p.z >= 0.0 && p.z <= o.h) {
+          best.t = t0;
+          best.what = idx;
+          best.face = 0;
+          best.n = to_world(o, Vec3{p.x / o.r, p.y / o.r, 0.0});
+          best.s = std::atan2(p.y, p.x) * o.r;
+          best.tt = p.z;
+        }
+      }
+    }
+  }
+  if (std::fabs(ld.z) > kEps) {
+    for (int cap = 0; cap < 2; ++cap) {
+      const double zc = cap == 0 ? o.h : 0.0;
+      const double t = (zc - lo.z) / ld.z;
+      if (t <= 1e-6 || t >= best.t) continue;
+      const Vec3 p = lo + t * ld;
+      if (p.x * p.x + p.y * p.y > o.r * o.r) continue;
+      best.t = t;
+      best.what = idx;
+      best.face = 1 + cap;
+      best.n = Vec3{0, 0, cap == 0 ? 1.0 : -1.0};
+      best.s = p.x;
+      best.tt = p.y;
+    }
+  }
+}
+
+struct Tracer {
+  const Scene& sc;
+  const std::vector<Placed>& placed;
+  double far_m;
+
+  Hit trace(const CameraFrame& cf, int cam, double u, double v) const {
+    const CameraSpec& c = sc.camera;
+    const double a = (u - c.cx) / c.focal_px, b = (v - c.cy) / c.focal_px;
+    const Vec3 dir = a * cf.xc + b * cf.yc + cf.zc;
+    Hit h;
+    if (dir.z < -kEps) {
+      const double t = -cf.origin.z / dir.z;
+      const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
+      if (range <= far_m) {
+        h.t = t;
+        h.what = -1;
+        h.n = {0, 0, 1};
+      }
+    }
+    for (std::size_t i = 0; i < placed.size(); ++i) {
+      const Placed& o = placed[i];
+      if (u < o.u0[cam] || u > o.u1[cam] || v < o.v0[cam] || v > o.v1[cam]) continue;
+      if (o.cyl) intersect_cylinder(o, static_cast<int>(i), cf.origin, dir, h);
+      else intersect_box(o, static_cast<int>(i), cf.origin, dir, h);
+    }
+    return h;
+  }
+
+  Color shade(const CameraFrame& cf, double u, double v, const Hit& h, Vec3 sun, Color sun_c, Color amb_c,
+              Color horizon) const {
+    const CameraSpec& c = sc.camera;
+    const Vec3 dir = ((u - c.cx) / c.focal_px) * cf.xc + ((v - c.cy) / c.focal_px) * cf.yc + cf.zc;
+    const double len = detail::norm(dir);
+    const Vec3 d = (1.0 / len) * dir;
+    if (h.what == -2) return detail::sky_color(sc.sky.kind, d, sun, sc.seed);
+    const double dist = h.t * len;
+    // Pixel footprint [m]: distance / f, stretched on surfaces seen at a grazing angle. The true
+    // footprint is stretched along the view direction only; the geometric mean (1/sqrt(cos)) keeps
+    // the horizontal detail stereo matching needs while still fading what would alias.
+    const double cosi = std::max(0.02, std::fabs(detail::dot(d, h.n)));
+    const double fp = dist / c.focal_px / std::sqrt(cosi);
+    const Vec3 p = cf.origin + h.t * dir;
+    Color albedo;
+    if (h.what == -1) {
+      albedo = detail::ground_albedo(sc.ground.texture, p.x, p.y, sc.ground.scale_m, fp, sc.seed * 31u + 7u);
+    } else {
+      const Placed& o = placed[static_cast<std::size_t>(h.what)];
+      albedo = detail::obstacle_albedo(o.spec->texture, o.tint, h.s, h.tt, fp,
+                                       o.seed + static_cast<std::uint64_t>(h.face) * 101u);
+    }
+    const double amb = sc.light.ambient;
+    const double lambert = std::max(0.0, detail::dot(h.n, sun));
+    Color col = albedo * ((amb * amb_c) + ((1.0 - amb) * lambert) * sun_c);
+    // Haze: the ground (and anything far) fades into the horizon colour at far_m.
+    const double horiz = dist * std::sqrt(std::max(0.0, 1.0 - d.z * d.z));
+    const double haze = detail::smoothstep(0.3 * far_m, far_m, horiz);
+    return detail::mix(col, horizon, haze);
+  }
+};
+
+// Standard-normal quantile Phi^-1(p), 0 < p < 1: P. J. Acklam's rational approximation
+// (relative error < 1.2e-9), no iteration.
+double normal_quantile(double p) {
+  static constexpr double a[] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+                                 1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
+  static constexpr double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+                                 6.680131188771972e+01,  -1.328068155288572e+01};
+  static constexpr double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+                                 -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
+  static constexpr double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                                 3.754408661907416e+00};
+  constexpr double plow = 0.02425;
+  if (p < plow) {
+    const double q = std::sqrt(-2.0 * std::log(p));
+    return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+           ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0);
+  }
+  if (p > 1.0 - plow) return -normal_quantile(1.0 - p);
+  const double q = p - 0.5, r = q * q;
+  return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+         (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0);
+}
+
+// Zero-mean unit Gaussian for (seed, camera, pixel, channel): a hash of those picks one of 2^16
+// equally likely standard-normal quantiles Phi^-1((i + 0.5) / 2^16), tabulated once (one hash
+// per sample instead of a log and a cos per Box-Muller pair).
+double gauss(std::uint64_t seed, int cam, int x, int y, int ch) {
+  static const std::vector<float> table = [] {
+    std::vector<float> t(1u << 16);
+    for (std::size_t i = 0; i < t.size(); ++i)
+      t[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / static_cast<double>(t.size())));
+    return t;
+  }();
+  const std::uint64_t k = seed ^ (static_cast<std::uint64_t>(cam * 4 + ch) << 56);
+  const double u = detail::hash01(x, y, k);
+  return table[static_cast<std::size_t>(u * 65536.0)];
+}
+
+std::uint8_t to_u8(double c, const CameraRadiometry& r, double noise) {
+  c = detail::clamp01(c);
+  if (r.gamma != 1.0) c = std::pow(c, r.gamma);
+  const double v = r.gain * c * 255.0 + r.bias + noise;
+  return static_cast<std::uint8_t>(std::clamp(std::floor(v + 0.5), 0.0, 255.0));
+}
+
+}  // namespace
+
+double footprint_distance(const Footprint& f, double x, double y) {
+  const double dx = x - f.x_m, dy = y - f.y_m;
+  if (f.circle) return std::hypot(dx, dy) - f.radius_m;
+  const double c = std::cos(f.yaw_rad), s = std::sin(f.yaw_rad);
+  const double lx = std::fabs(c * dx + s * dy) - f.half_length_m;
+  const double ly = std::fabs(-s * dx + c * dy) - f.half_width_m;
+  const double outside = std::hypot(std::max(lx, 0.0), std::max(ly, 0.0));
+  return outside + std::min(std::max(lx, ly), 0.0);
+}
+
+World::World(Scene scene) : scene_(std::move(scene)) {}
+
+StereoCalib World::calib() const {
+  const CameraSpec& c = scene_.camera;
+  StereoCalib k;
+  k.focal_px = c.focal_px;
+  k.cx = c.cx;
+  k.cy = c.cy;
+  k.baseline_m = c.baseline_m;
+  k.height_m = c.height_m;
+  k.pitch_rad = c.pitch_deg * kDeg;
+  return k;
+}
+
+Pose2 World::scene_pose() const { return {scene_.robot.x_m, scene_.robot.y_m, scene_.robot.yaw_deg * kDeg}; }
+
+std::vector<Footprint> World::obstacles_at(double t) const {
+  std::vector<Footprint> out;
+  for (const auto& o : scene_.obstacles) {
+    Footprint f;
+    f.id = o.id;
+    f.circle = o.shape != Shape::Box;
+    f.x_m = o.x_m + o.vx_mps * t;
+    f.y_m = o.y_m + o.vy_mps * t;
+    f.yaw_rad = o.yaw_deg * kDeg;
+    f.half_length_m = o.length_m * 0.5;
+    f.half_width_m = o.width_m * 0.5;
+    f.radius_m = o.radius_m;
+    f.z0_m = o.z_m;
+    f.z1_m = o.z_m + o.height_m;
+    out.push_back(f);
+  }
+  return out;
+}
+
+double World::clearance(const Pose2& pose, double t) const {
+  double best = kInf;
+  for (const auto& f : obstacles_at(t)) best = std::min(best, footprint_distance(f, pose.x_m, pose.y_m));
+  return best;
+}
+
+RenderResult World::render(const Pose2& pose, double time_s, int threads) const {
+  const Scene& sc = scene_;
+  const CameraSpec& cam = sc.camera;
+  const int W = cam.width, H = cam.height;
+  const CameraFrame frames[2] = {camera_frame(cam, pose, 0), camera_frame(cam, pose, 1)};
+
+  // Obstacles at time t with conservative screen bounds (8 corners of the bounding box projected;
+  // the whole image when a corner is behind the camera).
+  std::vector<Placed> placed;
+  for (std::size_t i = 0; i < sc.obstacles.size(); ++i) {
+    const ObstacleSpec& o = sc.obstacles[i];
+    Placed p;
+    p.index = static_cast<int>(i);
+    p.spec = &o;
+    p.base = {o.x_m + o.vx_mps * time_s, o.y_m + o.vy_mps * time_s, o.z_m};
+    p.c = std::cos(o.yaw_deg * kDeg);
+    p.s = std::sin(o.yaw_deg * kDeg);
+    p.cyl = o.shape != Shape::Box;
+    p.hx = p.cyl ? o.radius_m : o.length_m * 0.5;
+    p.hy = p.cyl ? o.radius_m : o.width_m * 0.5;
+    p.r = o.radius_m;
+    p.h = o.height_m;
+    p.tint = {o.color[0] / 255.0, o.color[1] / 255.0, o.color[2] / 255.0};
+    p.seed = detail::mix64(sc.seed * 0x100000001b3ULL + static_cast<std::uint64_t>(o.id) + 1u);
+    for (int k = 0; k < 2; ++k) {
+      const CameraFrame& cf = frames[k];
+      double u0 = kInf, u1 = -kInf, v0 = kInf, v1 = -kInf;
+      bool behind = false, any_front = false;
+      for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 l{(corner & 1) ? p.hx : -p.hx, (corner & 2) ? p.hy : -p.hy, (corner & 4) ? p.h : 0.0};
+        const Vec3 rel = p.base + to_world(p, l) - cf.origin;
+        const double X = detail::dot(rel, cf.xc), Y = detail::dot(rel, cf.yc), Z = detail::dot(rel, cf.zc);
+        if (Z < 1e-3) { behind = true; continue; }
+        any_front = true;
+        const double u = cam.cx + cam.focal_px * X / Z, v = cam.cy + cam.focal_px * Y / Z;
+        u0 = std::min(u0, u); u1 = std::max(u1, u); v0 = std::min(v0, v); v1 = std::max(v1, v);
+      }
+      if (!any_front) { u0 = v0 = kInf; u1 = v1 = -kInf; }
+      else if (behind) { u0 = v0 = -kInf; u1 = v1 = kInf; }
+      else { u0 -= 2; v0 -= 2; u1 += 2; v1 += 2; }
+      p.u0[k] = u0; p.u1[k] = u1; p.v0[k] = v0; p.v1[k] = v1;
+    }
+    placed.push_back(p);
+  }
+
+  const Tracer tr{sc, placed, sc.render.far_m};
+  const double sun_az = sc.light.sun_azimuth_deg * kDeg, sun_el = sc.light.sun_elevation_deg * kDeg;
+  const Vec3 sun{std::cos(sun_el) * std::cos(sun_az), std::cos(sun_el) * std::sin(sun_az), std::sin(sun_el)};
+  const Color sun_c = detail::sun_light(sc.sky.kind), amb_c = detail::ambient_light(sc.sky.kind);
+  // Horizon colour seen along the robot heading (haze target; direction-independent enough).
+  const Color horizon = detail::sky_color(sc.sky.kind, Vec3{std::cos(pose.yaw_rad), std::sin(pose.yaw_rad), 0.0},
+                                          Vec3{0, 0, 1}, sc.seed);
+
+  RenderResult res;
+  res.left = ImageRgb8(W, H);
+  res.right = ImageRgb8(W, H);
+  res.disparity = Image<float>(W, H, 0.0f);
+  res.road_mask = ImageU8(W, H, 0);
+  res.sky_mask = ImageU8(W, H, 0);
+  res.obstacle_ids = ImageI32(W, H, -1);
+  res.calib = calib();
+  Image<float> depth(W, H, 0.0f);
+  ImageI32 index(W, H, -1);
+
+  const int n = sc.render.supersample;
+  const double fB = cam.focal_px * cam.baseline_m;
+  const int rows = 2 * H;
+#if defined(FS_HAVE_OPENMP)
+  const int nt = threads > 0 ? threads : 0;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt > 0 ? nt : omp_get_max_threads()) if (rows > 1)
+#else
+  (void)threads;
+#endif
+  for (int row = 0; row < rows; ++row) {
+    const int k = row / H, y = row % H;  // camera, image row
+    const CameraFrame& cf = frames[k];
+    const CameraRadiometry& rad = k == 0 ? sc.radiometric.left : sc.radiometric.right;
+    Rgb8* out = (k == 0 ? res.left : res.right).row(y);
+    for (int x = 0; x < W; ++x) {
+      // Geometry of the n x n sub-pixel rays and of the pixel centre. Where all of them see the same
+      // surface (face), the pixel is shaded once at the centre: the textures are pre-filtered by
+      // their level of detail (textures.cpp), so only geometric edges need the sub-samples.
+      Hit sub[kMaxSub * kMaxSub];
+      bool same = true;
+      const Hit centre = tr.trace(cf, k, x, y);
+      for (int sy = 0, i = 0; sy < n; ++sy)
+        for (int sx = 0; sx < n; ++sx, ++i) {
+          sub[i] = tr.trace(cf, k, x + (sx + 0.5) / n - 0.5, y + (sy + 0.5) / n - 0.5);
+          same = same && sub[i].what == centre.what && sub[i].face == centre.face;
+        }
+      Color acc;
+      if (same) {
+        acc = tr.shade(cf, x, y, centre, sun, sun_c, amb_c, horizon);
+      } else {
+        for (int sy = 0, i = 0; sy < n; ++sy)
+          for (int sx = 0; sx < n; ++sx, ++i)
+            acc = acc + tr.shade(cf, x + (sx + 0.5) / n - 0.5, y + (sy + 0.5) / n - 0.5, sub[i], sun, sun_c, amb_c,
+                                 horizon);
+        acc = (1.0 / (n * n)) * acc;
+      }
+      const double sig = rad.noise_sigma;
+      out[x].r = to_u8(acc.r, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 0) : 0.0);
+      out[x].g = to_u8(acc.g, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 1) : 0.0);
+      out[x].b = to_u8(acc.b, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 2) : 0.0);
+      if (k != 0) continue;
+      // Ground truth: the left ray through the pixel centre.
+      const Hit& g = centre;
+      if (g.what == -2) {
+        res.sky_mask.at(x, y) = 255;
+        continue;
+      }
+      res.disparity.at(x, y) = static_cast<float>(fB / g.t);
+      depth.at(x, y) = static_cast<float>(g.t);
+      if (g.what == -1) {
+        res.road_mask.at(x, y) = 255;
+      } else {
+        index.at(x, y) = g.what;
+        res.obstacle_ids.at(x, y) = placed[static_cast<std::size_t>(g.what)].spec->id;
+      }
+    }
+  }
+
+  // Obstacle list: boxes, counts and median depth over the visible pixels.
+  std::vector<std::vector<float>> depths(placed.size());
+  for (auto& p : placed) {
+    ObstacleTruth t;
+    t.id = p.spec->id;
+    t.shape = p.spec->shape;
+    t.x0 = W; t.y0 = H; t.x1 = -1; t.y1 = -1;
+    const Vec3 centre = p.base + Vec3{0, 0, p.h * 0.5};
+    t.world[0] = centre.x; t.world[1] = centre.y; t.world[2] = centre.z;
+    const Vec3 rel = centre - frames[0].origin;
+    t.cam[0] = detail::dot(rel, frames[0].xc);
+    t.cam[1] = detail::dot(rel, frames[0].yc);
+    t.cam[2] = detail::dot(rel, frames[0].zc);
+    t.velocity[0] = p.spec->vx_mps;
+    t.velocity[1] = p.spec->vy_mps;
+    res.obstacles.push_back(t);
+  }
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const int i = index.at(x, y);
+      if (i < 0) continue;
+      ObstacleTruth& t = res.obstacles[static_cast<std::size_t>(i)];
+      t.x0 = std::min(t.x0, x); t.x1 = std::max(t.x1, x);
+      t.y0 = std::min(t.y0, y); t.y1 = std::max(t.y1, y);
+      ++t.visible_pixels;
+      depths[static_cast<std::size_t>(i)].push_back(depth.at(x, y));
+    }
+  for (std::size_t i = 0; i < placed.size(); ++i) {
+    ObstacleTruth& t = res.obstacles[i];
+    auto& d = depths[i];
+    if (d.empty()) {
+      t.x0 = t.y0 = 0; t.x1 = t.y1 = -1;
+      continue;
+    }
+    const std::size_t mid = d.size() / 2;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid), d.end());
+    double med = d[mid];
+    if (d.size() % 2 == 0) med = 0.5 * (med + *std::max_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid)));
+    t.distance_m = med;
+    t.truncated = t.x0 == 0 || t.y0 == 0 || t.x1 == W - 1 || t.y1 == H - 1;
+  }
+  return res;
+}
+
+}  // namespace fs::sim
