@@ -1,6 +1,10 @@
 #include "detect_config.hpp"
 
+#include <cmath>
+#include <sstream>
 #include <string>
+
+#include <toml++/toml.h>
 
 namespace fs {
 
@@ -52,6 +56,40 @@ DetectParams detect_params_from(const ConfigValues& v) {
     throw ConfigError("detect.near_m (" + std::to_string(p.near_m) + ") must be <= detect.far_m (" +
                       std::to_string(p.far_m) + ")" + src);
   return p;
+}
+
+StereoCalib parse_calib_toml(const std::string& text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream ss;
+    ss << "calibration '" << source << "' is not valid TOML: " << e.description() << " (line " << e.source().begin.line << ")";
+    throw ConfigError(ss.str());
+  }
+  const toml::table* t = root["calib"].as_table() ? root["calib"].as_table() : &root;
+  auto get = [&](const char* key, bool required, double fallback) {
+    const toml::node* n = t->get(key);
+    if (!n) {
+      if (required)
+        throw ConfigError(std::string("calibration '") + source + "' has no '" + key +
+                          "' (needed: focal_px, baseline_m, cx, cy; optional: height_m, pitch_deg)");
+      return fallback;
+    }
+    const auto v = n->value<double>();
+    if (!v) throw ConfigError(std::string("calibration '") + source + "': '" + key + "' must be a number");
+    return *v;
+  };
+  StereoCalib c;
+  c.focal_px = get("focal_px", true, 0);
+  c.baseline_m = get("baseline_m", true, 0);
+  c.cx = get("cx", true, 0);
+  c.cy = get("cy", true, 0);
+  c.height_m = get("height_m", false, 0);
+  c.pitch_rad = get("pitch_deg", false, 0) * M_PI / 180.0;
+  if (!(c.focal_px > 0) || !(c.baseline_m > 0))
+    throw ConfigError("calibration '" + source + "': focal_px and baseline_m must be > 0");
+  return c;
 }
 
 }  // namespace fs
