@@ -11,5 +11,7 @@ void add_fis_command(CLI::App& app);    // cmd_fis.cpp
 void add_eval_command(CLI::App& app);   // cmd_eval.cpp
 void add_bench_command(CLI::App& app);  // cmd_bench.cpp
 void add_sim_command(CLI::App& app);    // cmd_sim.cpp
+void add_detect_command(CLI::App& app);       // cmd_detect.cpp
+void add_detect_eval_command(CLI::App& app);  // cmd_detect_eval.cpp
 
 }  // namespace fs::app

@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
   fs::app::add_eval_command(app);
   fs::app::add_bench_command(app);
   fs::app::add_sim_command(app);
+  fs::app::add_detect_command(app);
+  fs::app::add_detect_eval_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

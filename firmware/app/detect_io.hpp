@@ -1,0 +1,35 @@
+// Detection at the edge of the program: calibration files, KITTI disparity input, colour
+// conversion, obstacles JSON, overlay drawing and the detect dump (docs/formats.md, "Detect dump").
+#pragma once
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "fuzzystereo/calib.hpp"
+#include "fuzzystereo/detect.hpp"
+#include "fuzzystereo/image.hpp"
+
+namespace fs::app {
+
+// --calib FILE: JSON ({"focal_px", "baseline_m", "cx", "cy"[, "height_m", "pitch_deg"]}, at the top
+// level or under "calib" — a simulator sim_gt/*.json works as is), TOML (same fields), or a KITTI
+// calibration (calib_cam_to_cam.txt P_rect_02/P_rect_03, or KITTI 2012 P2/P3). Throws UserError
+// naming the file and the missing field.
+StereoCalib load_stereo_calib(const std::string& path);
+StereoCalib calib_from_json(const nlohmann::json& j, const std::string& source);
+
+// KITTI uint16 disparity PNG (value = d * 256, 0 = none) -> Q4 (kInvalidDisp = none).
+ImageI16 read_kitti_disparity_q4(const std::string& path);
+// 8-bit BGR/BGRA/grey Mat -> RGB core image.
+ImageRgb8 to_core_rgb(const cv::Mat& bgr);
+
+nlohmann::json obstacles_json(const DetectResult& r, const StereoCalib& calib, int width, int height);
+// Left image with road (magenta) and sky (cyan) tinted, obstacle boxes in red / green / blue for
+// near / mid / far with their distance.
+cv::Mat draw_overlay(const cv::Mat& left_bgr, const DetectResult& r);
+// Every detect stage's inputs and outputs as .npy + detect_meta.json in `dir`.
+void write_detect_dump(const std::string& dir, const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib,
+                       const std::string& config_toml, const DetectResult& r);
+
+}  // namespace fs::app

@@ -1,0 +1,95 @@
+#include "detect_config.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include <toml++/toml.h>
+
+namespace fs {
+
+namespace {
+HsvRange range_from(const ConfigValues& v, const std::string& n) {
+  const std::string k = "detect.sky_" + n + "_";
+  HsvRange r;
+  r.enabled = v.flag(k + "enabled");
+  r.h_min = v.integer(k + "h_min"), r.h_max = v.integer(k + "h_max");
+  r.s_min = v.integer(k + "s_min"), r.s_max = v.integer(k + "s_max");
+  r.v_min = v.integer(k + "v_min"), r.v_max = v.integer(k + "v_max");
+  return r;
+}
+}  // namespace
+
+DetectParams detect_params_from(const ConfigValues& v) {
+  DetectParams p;
+  p.road_enabled = v.flag("detect.road_enabled");
+  p.road_min_cell_count = v.integer("detect.road_min_cell_count");
+  p.road_ransac_iterations = v.integer("detect.road_ransac_iterations");
+  p.road_ransac_seed = v.integer("detect.road_ransac_seed");
+  p.road_fit_tolerance_px = v.num("detect.road_fit_tolerance_px");
+  p.road_slope_min = v.num("detect.road_slope_min");
+  p.road_slope_max = v.num("detect.road_slope_max");
+  p.road_min_support_pct = v.num("detect.road_min_support_pct");
+  p.road_tolerance_px = v.num("detect.road_tolerance_px");
+  p.road_close_radius = v.integer("detect.road_close_radius");
+  p.sky_enabled = v.flag("detect.sky_enabled");
+  p.sky_limit = v.str("detect.sky_limit") == "fraction" ? SkyLimit::Fraction : SkyLimit::Horizon;
+  p.sky_upper_fraction = v.num("detect.sky_upper_fraction");
+  p.sky_max_disparity_px = v.num("detect.sky_max_disparity_px");
+  p.sky_ranges = {range_from(v, "blue"), range_from(v, "grey"), range_from(v, "sunset")};
+  p.kmeans_k = v.integer("detect.kmeans_k");
+  p.kmeans_max_iterations = v.integer("detect.kmeans_max_iterations");
+  p.kmeans_min_disparity_px = v.num("detect.kmeans_min_disparity_px");
+  p.kmeans_merge_px = v.num("detect.kmeans_merge_px");
+  p.udisp_min_height_px = v.integer("detect.udisp_min_height_px");
+  p.udisp_d_tolerance_px = v.integer("detect.udisp_d_tolerance_px");
+  p.udisp_min_run_px = v.integer("detect.udisp_min_run_px");
+  p.cc_max_step_px = v.num("detect.cc_max_step_px");
+  p.min_area_px = v.integer("detect.min_area_px");
+  p.near_m = v.num("detect.near_m");
+  p.far_m = v.num("detect.far_m");
+  const std::string src = " (in " + v.source + ")";
+  if (p.road_slope_min > p.road_slope_max)
+    throw ConfigError("detect.road_slope_min (" + std::to_string(p.road_slope_min) + ") must be <= detect.road_slope_max (" +
+                      std::to_string(p.road_slope_max) + ")" + src);
+  if (p.near_m > p.far_m)
+    throw ConfigError("detect.near_m (" + std::to_string(p.near_m) + ") must be <= detect.far_m (" +
+                      std::to_string(p.far_m) + ")" + src);
+  return p;
+}
+
+StereoCalib parse_calib_toml(const std::string& text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream ss;
+    ss << "calibration '" << source << "' is not valid TOML: " << e.description() << " (line " << e.source().begin.line << ")";
+    throw ConfigError(ss.str());
+  }
+  const toml::table* t = root["calib"].as_table() ? root["calib"].as_table() : &root;
+  auto get = [&](const char* key, bool required, double fallback) {
+    const toml::node* n = t->get(key);
+    if (!n) {
+      if (required)
+        throw ConfigError(std::string("calibration '") + source + "' has no '" + key +
+                          "' (needed: focal_px, baseline_m, cx, cy; optional: height_m, pitch_deg)");
+      return fallback;
+    }
+    const auto v = n->value<double>();
+    if (!v) throw ConfigError(std::string("calibration '") + source + "': '" + key + "' must be a number");
+    return *v;
+  };
+  StereoCalib c;
+  c.focal_px = get("focal_px", true, 0);
+  c.baseline_m = get("baseline_m", true, 0);
+  c.cx = get("cx", true, 0);
+  c.cy = get("cy", true, 0);
+  c.height_m = get("height_m", false, 0);
+  c.pitch_rad = get("pitch_deg", false, 0) * M_PI / 180.0;
+  if (!(c.focal_px > 0) || !(c.baseline_m > 0))
+    throw ConfigError("calibration '" + source + "': focal_px and baseline_m must be > 0");
+  return c;
+}
+
+}  // namespace fs

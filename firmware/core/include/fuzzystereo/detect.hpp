@@ -1,0 +1,203 @@
+// Obstacle detection from a refined disparity map (paper Section III-B, eq. (16)-(25)):
+//   road from the v-disparity image (eq. 16-17)  ->  sky from HSV colour (eq. 18-21)  ->
+//   k-means on the remaining disparities (eq. 22-23)  ->  u-disparity filtering per cluster
+//   (eq. 24-25)  ->  connected components  ->  distance Z = f*B/d and near/mid/far classes.
+// Every choice the paper leaves open is written down, with its reason, in docs/detection.md.
+//
+// Formats: disparities are int16 Q4 (kDispShift, value = d*16, kInvalidDisp = no estimate) as in
+// the matcher. Histograms (v- and u-disparity) are over the *integer* disparity
+// round(d) = (q4 + kDispScale/2) >> kDispShift. Masks are uint8 0/1. k-means runs in integers on
+// the Q4 values (centres are Q4). No floating point touches a per-pixel decision except the road
+// line, which is turned into an integer Q4 table once per frame (road_line_q4).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fuzzystereo/calib.hpp"
+#include "fuzzystereo/image.hpp"
+
+namespace fs {
+
+// One inclusive HSV box (H in degrees 0..359, S and V in 0..100 as in eq. (19)-(21)).
+// h_min > h_max means the hue range wraps through 0 (e.g. 340..30 for red/orange).
+struct HsvRange {
+  bool enabled = true;
+  int h_min = 0, h_max = 359;
+  int s_min = 0, s_max = 100;
+  int v_min = 0, v_max = 100;
+};
+
+enum class SkyLimit { Horizon, Fraction };
+
+// Defaults mirror the [detect] section of common/config/default.toml (ranges in schema.toml).
+struct DetectParams {
+  // ---- road, v-disparity (eq. 16-17) ----
+  bool road_enabled = true;
+  int road_min_cell_count = 3;         // v-disparity cells with fewer pixels are ignored by the fit
+  int road_ransac_iterations = 300;    // weighted RANSAC samples (deterministic generator)
+  int road_ransac_seed = 1;
+  double road_fit_tolerance_px = 1.0;  // cell inlier band around the line [px of disparity]
+  double road_slope_min = 0.02;        // accepted line slopes a [px of disparity per row]
+  double road_slope_max = 2.0;
+  double road_min_support_pct = 5.0;   // line accepted when inliers >= this % of valid pixels
+  double road_tolerance_px = 1.0;      // pixel is road when |d - (a*v + b)| <= this [px]
+  int road_close_radius = 2;           // closing with a (2r+1)^2 square; 0 = off [px]
+  // ---- sky, HSV (eq. 18-21) ----
+  bool sky_enabled = true;
+  SkyLimit sky_limit = SkyLimit::Horizon;
+  double sky_upper_fraction = 0.5;     // rows above this fraction of the height (Fraction, or fallback)
+  std::array<HsvRange, 3> sky_ranges{};  // blue sky, overcast/bright grey, sunset (docs/detection.md)
+  double sky_max_disparity_px = 0.0;   // >0: a pixel with a valid disparity above this is never sky
+  // ---- k-means (eq. 22-23) ----
+  int kmeans_k = 6;
+  int kmeans_max_iterations = 30;
+  double kmeans_min_disparity_px = 1.0;  // smaller (farther) disparities are not obstacle candidates
+  double kmeans_merge_px = 1.0;    // after k-means, neighbouring centres closer than this merge (0 = off)
+  // ---- u-disparity (eq. 24-25) ----
+  int udisp_min_height_px = 8;     // cell kept when >= this many pixels of the column share its disparity
+  int udisp_d_tolerance_px = 1;    // ... counting disparities within +-this many px (histogram box filter)
+  int udisp_min_run_px = 6;        // and it lies in a horizontal run of kept cells at least this long
+  // ---- components and distance ----
+  double cc_max_step_px = 1.0;     // 8-neighbours join when their disparities differ by <= this [px]
+  int min_area_px = 100;           // smaller components are dropped
+  double near_m = 2.0;             // Z < near_m: near (red)
+  double far_m = 5.0;              // Z >= far_m: far (blue); otherwise mid (green)
+
+  DetectParams();
+};
+
+enum class ObstacleClass : int { Near = 0, Mid = 1, Far = 2 };
+const char* obstacle_class_name(ObstacleClass c);
+
+struct Obstacle {
+  int id = 0;                       // 0.. in order of distance (nearest first)
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive box of the component's pixels [px]
+  int pixel_count = 0;
+  int disparity_q4 = 0;             // median Q4 disparity of the component
+  double distance_m = 0.0;          // Z = f*B/d [m]
+  double lateral_m = 0.0;           // X of the box centre column [m], + = right
+  ObstacleClass cls = ObstacleClass::Mid;
+};
+
+// Road line d = a*v + b in the v-disparity image (v = image row, d in px).
+struct RoadLine {
+  bool found = false;
+  double a = 0.0, b = 0.0;
+  int horizon_row = -1;        // first row with a*v + b > 0 (rows >= it are road candidates); -1 = none
+  std::int64_t support = 0;    // pixels (cell weights) within the fit tolerance
+};
+
+enum class DetectStage : int { Road, Sky, KMeans, UDisparity, Objects, Count };
+const char* detect_stage_name(DetectStage s);
+
+struct DetectTimings {
+  std::array<double, static_cast<int>(DetectStage::Count)> ms{};
+  double total_ms() const;
+};
+
+struct DetectResult {
+  int bins = 0;                 // integer disparities 0 .. bins-1 in the histograms
+  ImageI32 vdisp;               // width = bins, height = rows: eq. (17)
+  RoadLine road;
+  std::vector<std::int32_t> road_line_q4;  // per row: expected Q4 disparity (INT32_MIN above horizon)
+  ImageU8 road_raw;             // 1 = on the line (before closing)
+  ImageU8 road_mask;            // 1 = road (after closing)
+  bool sky_skipped = true;      // no colour image (mono camera) or sky_enabled = false
+  int sky_rows = 0;             // rows 0 .. sky_rows-1 were searched
+  ImageU8 sky_mask;             // 1 = sky
+  ImageU8 candidates;           // 1 = valid, not road, not sky, disparity >= kmeans_min_disparity
+  std::vector<std::int32_t> centres_q4;  // cluster centres, nearest (largest disparity) first
+  std::vector<std::int64_t> cluster_sizes;
+  int kmeans_iterations = 0;
+  ImageU8 cluster_labels;       // cluster index, kNoCluster = not a candidate
+  std::vector<ImageU8> udisp_kept;  // per cluster: width = image width, height = bins; 1 = kept cell
+  ImageU8 kept;                 // 1 = pixel survived the u-disparity filter
+  ImageI32 components;          // 0 = none, 1.. = component (raster order of first pixel), before min-area
+  std::vector<Obstacle> obstacles;
+  ImageI32 obstacle_labels;     // 0 = none, id + 1 (same convention as the simulator's GT)
+  DetectTimings timings;
+};
+
+inline constexpr std::uint8_t kNoCluster = 255;
+inline constexpr int kMaxClusters = 16;
+
+// ---- stages (free functions, one file each in firmware/core/src/detect/) -----------------------
+namespace detect {
+
+// round(d) of a valid Q4 disparity.
+inline int disp_bin(std::int16_t q4) { return (q4 + kDispScale / 2) >> kDispShift; }
+// Number of histogram bins needed for `disp` (largest rounded disparity + 1, at least 1).
+int disparity_bins(const ImageI16& disp);
+
+// eq. (16)-(17): vdisp(v, d) = number of pixels of row v whose rounded disparity is d.
+ImageI32 v_disparity(const ImageI16& disp, int bins);
+// Weighted RANSAC + weighted least-squares refit of the road line in the v-disparity image.
+RoadLine fit_road_line(const ImageI32& vdisp, std::int64_t valid_pixels, const DetectParams& p);
+// Per row, the line's disparity in Q4 (rows above the horizon: INT32_MIN).
+std::vector<std::int32_t> road_line_table(const RoadLine& line, int rows);
+// 1 where the pixel is valid and |q4 - line_q4[v]| <= tolerance (rows below the horizon).
+ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tolerance_px);
+// Binary closing (dilate then erode) with a (2r+1)^2 square; outside the image counts as 0 for the
+// dilation and 1 for the erosion, so the closing never eats the border.
+ImageU8 close_mask(const ImageU8& mask, int radius);
+
+// eq. (18)-(21) in integers: H in degrees 0..359, S and V in 0..100, each rounded to nearest.
+struct Hsv {
+  int h = 0, s = 0, v = 0;
+};
+Hsv rgb_to_hsv(Rgb8 c);
+bool in_range(const Hsv& c, const HsvRange& r);
+// 1 for rows < rows_limit whose colour lies in an enabled range (and, when
+// p.sky_max_disparity_px > 0, whose disparity is invalid or not above it).
+ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows_limit, const DetectParams& p);
+
+struct KMeansResult {
+  std::vector<std::int32_t> centres_q4;  // nearest first
+  std::vector<std::int64_t> sizes;
+  int iterations = 0;
+  ImageU8 labels;  // kNoCluster where candidates == 0
+};
+// eq. (22)-(23), 1-D on the Q4 disparities of candidate pixels, via a histogram over Q4 values;
+// then clusters whose centres are closer than merge_q4 to their neighbour merge (single linkage
+// along the sorted centres; merged centre = rounded weighted mean). merge_q4 = 0 keeps all k.
+KMeansResult kmeans_disparity(const ImageI16& disp, const ImageU8& candidates, int k, int max_iterations,
+                              int merge_q4 = 0);
+
+// eq. (24)-(25) per cluster, cell filter and horizontal runs; returns per-cluster kept cells and
+// the kept pixels.
+struct UDispResult {
+  std::vector<ImageU8> kept_cells;
+  ImageU8 kept;
+};
+UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int clusters, int bins,
+                               const DetectParams& p);
+
+// 8-connected components of mask==1 whose neighbouring Q4 disparities differ by <= max_step_q4.
+// Two-pass union-find; labels 1.. numbered in raster order of each component's first pixel.
+ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count);
+
+// Box, size, median disparity, Z, X and class per component (components >= min area), nearest
+// first; fills `labels` (0 none, id+1).
+std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, const ImageI16& disp,
+                                        const StereoCalib& calib, const DetectParams& p, ImageI32* labels);
+ObstacleClass classify_distance(double z_m, const DetectParams& p);
+
+}  // namespace detect
+
+// Chains the stages, one line each; reuses nothing heavier than the result buffers.
+class Detector {
+ public:
+  explicit Detector(const DetectParams& params);
+  // disp: refined left disparity (Q4). rgb: left colour image of the same size, or empty for a mono
+  // camera (the sky stage is skipped). calib: focal_px and baseline_m must be > 0 (checked by the
+  // caller when loading the calibration).
+  DetectResult detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib) const;
+  const DetectParams& params() const { return params_; }
+
+ private:
+  DetectParams params_;
+};
+
+}  // namespace fs

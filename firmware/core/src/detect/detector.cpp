@@ -1,0 +1,107 @@
+// The detection pipeline (Section III-B, Fig. 12): one line per stage, timings per stage.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "fuzzystereo/detect.hpp"
+
+namespace fs {
+
+const char* obstacle_class_name(ObstacleClass c) {
+  switch (c) {
+    case ObstacleClass::Near: return "near";
+    case ObstacleClass::Mid: return "mid";
+    case ObstacleClass::Far: return "far";
+  }
+  return "?";
+}
+
+const char* detect_stage_name(DetectStage s) {
+  switch (s) {
+    case DetectStage::Road: return "road";
+    case DetectStage::Sky: return "sky";
+    case DetectStage::KMeans: return "kmeans";
+    case DetectStage::UDisparity: return "udisparity";
+    case DetectStage::Objects: return "objects";
+    case DetectStage::Count: break;
+  }
+  return "?";
+}
+
+double DetectTimings::total_ms() const {
+  double t = 0;
+  for (double v : ms) t += v;
+  return t;
+}
+
+DetectParams::DetectParams() {
+  // Defaults of common/config/default.toml [detect] (docs/detection.md explains each range).
+  sky_ranges[0] = {true, 180, 250, 12, 100, 35, 100};  // blue sky
+  sky_ranges[1] = {true, 0, 359, 0, 12, 65, 100};      // overcast / bright grey-white
+  sky_ranges[2] = {true, 345, 45, 20, 100, 55, 100};   // sunset orange-red (wraps through 0)
+}
+
+Detector::Detector(const DetectParams& params) : params_(params) {}
+
+DetectResult Detector::detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib) const {
+  using clock = std::chrono::steady_clock;
+  const DetectParams& p = params_;
+  DetectResult r;
+  const int w = disp.width, h = disp.height;
+  auto t = clock::now();
+  auto lap = [&](DetectStage s) {
+    const auto n = clock::now();
+    r.timings.ms[std::size_t(s)] = std::chrono::duration<double, std::milli>(n - t).count();
+    t = n;
+  };
+  std::int64_t valid = 0;
+  for (const auto q : disp.data) valid += q >= 0;
+
+  // (a) road: v-disparity eq. (16)-(17), line fit, on-line pixels, closing.
+  r.bins = detect::disparity_bins(disp);
+  r.vdisp = detect::v_disparity(disp, r.bins);
+  if (p.road_enabled) r.road = detect::fit_road_line(r.vdisp, valid, p);
+  r.road_line_q4 = detect::road_line_table(r.road, h);
+  r.road_raw = detect::road_pixels(disp, r.road_line_q4, p.road_tolerance_px);
+  r.road_mask = detect::close_mask(r.road_raw, p.road_close_radius);
+  lap(DetectStage::Road);
+
+  // (b) sky: HSV eq. (18)-(21) in the upper part (above the horizon, or the upper fraction).
+  r.sky_skipped = rgb.empty() || !p.sky_enabled;
+  if (!r.sky_skipped) {
+    const int frac_rows = int(std::lround(p.sky_upper_fraction * h));
+    r.sky_rows = (p.sky_limit == SkyLimit::Horizon && r.road.found) ? r.road.horizon_row : frac_rows;
+    r.sky_mask = detect::sky_mask(rgb, disp, r.sky_rows, p);
+  } else {
+    r.sky_mask = ImageU8(w, h, 0);
+  }
+  lap(DetectStage::Sky);
+
+  // (c) k-means eq. (22)-(23) on the remaining valid disparities.
+  r.candidates = ImageU8(w, h, 0);
+  const std::int32_t dmin = std::int32_t(std::lround(p.kmeans_min_disparity_px * kDispScale));
+  for (std::size_t i = 0; i < disp.size(); ++i)
+    r.candidates.data[i] = std::uint8_t(disp.data[i] >= 0 && disp.data[i] >= dmin && !r.road_mask.data[i] && !r.sky_mask.data[i]);
+  detect::KMeansResult km = detect::kmeans_disparity(disp, r.candidates, p.kmeans_k, p.kmeans_max_iterations,
+                                                          int(std::lround(p.kmeans_merge_px * kDispScale)));
+  r.centres_q4 = std::move(km.centres_q4);
+  r.cluster_sizes = std::move(km.sizes);
+  r.kmeans_iterations = km.iterations;
+  r.cluster_labels = std::move(km.labels);
+  lap(DetectStage::KMeans);
+
+  // (d) u-disparity eq. (24)-(25) per cluster: cells, runs, back to pixels.
+  detect::UDispResult ud = detect::u_disparity_filter(disp, r.cluster_labels, int(r.centres_q4.size()), r.bins, p);
+  r.udisp_kept = std::move(ud.kept_cells);
+  r.kept = std::move(ud.kept);
+  lap(DetectStage::UDisparity);
+
+  // (e) components, boxes, Z = f*B/d, classes.
+  int n = 0;
+  r.components = detect::connected_components(r.kept, disp, int(std::lround(p.cc_max_step_px * kDispScale)), &n);
+  r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
+  lap(DetectStage::Objects);
+  return r;
+}
+
+}  // namespace fs

@@ -1,0 +1,77 @@
+// Obstacle boxes, distance and class (paper Section III-B, Fig. 22: nearest obstacles in red,
+// slightly farther in green, farthest in blue). Distance from the disparity: Z = f*B/d with d the
+// median Q4 disparity of the component (robust to the few pixels of road or background the
+// component may have picked up at its edges); lateral X = (u_c - cx) * Z / f with u_c the centre
+// column of the box. The class limits near_m / far_m are configurable (the paper gives none).
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "fuzzystereo/detect.hpp"
+
+namespace fs::detect {
+
+ObstacleClass classify_distance(double z_m, const DetectParams& p) {
+  if (z_m < p.near_m) return ObstacleClass::Near;
+  if (z_m >= p.far_m) return ObstacleClass::Far;
+  return ObstacleClass::Mid;
+}
+
+std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, const ImageI16& disp,
+                                        const StereoCalib& calib, const DetectParams& p, ImageI32* labels) {
+  struct Acc {
+    int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1, n = 0, first = 0;
+    std::vector<std::int16_t> d;
+  };
+  std::vector<Acc> acc(std::size_t(count) + 1);
+  for (int y = 0; y < components.height; ++y) {
+    const std::int32_t* l = components.row(y);
+    const std::int16_t* d = disp.row(y);
+    for (int x = 0; x < components.width; ++x) {
+      if (l[x] == 0) continue;
+      Acc& a = acc[std::size_t(l[x])];
+      a.x0 = std::min(a.x0, x), a.y0 = std::min(a.y0, y), a.x1 = std::max(a.x1, x), a.y1 = std::max(a.y1, y);
+      ++a.n;
+      a.d.push_back(d[x]);
+    }
+  }
+  std::vector<Obstacle> obs;
+  std::vector<int> comp_of;  // component label of each obstacle
+  for (int c = 1; c <= count; ++c) {
+    Acc& a = acc[std::size_t(c)];
+    if (a.n < p.min_area_px) continue;
+    const std::size_t mid = (a.d.size() - 1) / 2;  // lower median
+    std::nth_element(a.d.begin(), a.d.begin() + std::ptrdiff_t(mid), a.d.end());
+    Obstacle o;
+    o.x0 = a.x0, o.y0 = a.y0, o.x1 = a.x1, o.y1 = a.y1, o.pixel_count = a.n;
+    o.disparity_q4 = std::max<int>(1, a.d[mid]);  // d = 0 would be at infinity; clamp to 1/16 px
+    o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
+    o.lateral_m = (0.5 * (o.x0 + o.x1) - calib.cx) * o.distance_m / calib.focal_px;
+    o.cls = classify_distance(o.distance_m, p);
+    obs.push_back(o);
+    comp_of.push_back(c);
+  }
+  // Nearest first; equal disparity keeps raster order of the components (stable).
+  std::vector<std::size_t> order(obs.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return obs[a].disparity_q4 > obs[b].disparity_q4; });
+  std::vector<Obstacle> sorted;
+  std::vector<int> id_of_comp(std::size_t(count) + 1, -1);
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    Obstacle o = obs[order[i]];
+    o.id = int(i);
+    id_of_comp[std::size_t(comp_of[order[i]])] = int(i);
+    sorted.push_back(o);
+  }
+  if (labels) {
+    *labels = ImageI32(components.width, components.height, 0);
+    for (std::size_t i = 0; i < components.size(); ++i) {
+      const int c = components.data[i];
+      if (c > 0 && id_of_comp[std::size_t(c)] >= 0) labels->data[i] = id_of_comp[std::size_t(c)] + 1;
+    }
+  }
+  return sorted;
+}
+
+}  // namespace fs::detect

@@ -1,0 +1,202 @@
+// Plain scalar references of the detection stages (firmware/core/src/detect/), written the
+// straightforward way, for the bit-exact tests in test_detect.cpp. Not used by the firmware.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <climits>
+#include <cstdint>
+#include <cstdlib>
+#include <deque>
+#include <vector>
+
+#include "fuzzystereo/detect.hpp"
+
+namespace fs::ref {
+
+inline int bin_of(std::int16_t q4) { return int(std::lround(double(q4) / kDispScale + 1e-9)); }  // round half up for q4 >= 0
+
+// eq. (16)-(17) literally: delta(i, j) = [round(disp(i, j)) == d], v(j, d) = sum over the row.
+inline ImageI32 v_disparity(const ImageI16& disp, int bins) {
+  ImageI32 v(bins, disp.height, 0);
+  for (int y = 0; y < disp.height; ++y)
+    for (int d = 0; d < bins; ++d) {
+      int n = 0;
+      for (int x = 0; x < disp.width; ++x) n += disp.at(x, y) != kInvalidDisp && bin_of(disp.at(x, y)) == d;
+      v.at(d, y) = n;
+    }
+  return v;
+}
+
+inline ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tol_px) {
+  ImageU8 m(disp.width, disp.height, 0);
+  const int tol = int(std::lround(tol_px * kDispScale));
+  for (int y = 0; y < disp.height; ++y)
+    for (int x = 0; x < disp.width; ++x) {
+      const int l = line_q4[std::size_t(y)], d = disp.at(x, y);
+      m.at(x, y) = l != INT32_MIN && d != kInvalidDisp && std::abs(d - l) <= tol;
+    }
+  return m;
+}
+
+// Full 2-D window: dilation = any pixel inside the image window; erosion = all pixels inside.
+inline ImageU8 close_mask(const ImageU8& m, int r) {
+  if (r <= 0) return m;
+  auto op = [&](const ImageU8& in, bool dilate) {
+    ImageU8 o(in.width, in.height, 0);
+    for (int y = 0; y < in.height; ++y)
+      for (int x = 0; x < in.width; ++x) {
+        bool any = false, all = true;
+        for (int yy = y - r; yy <= y + r; ++yy)
+          for (int xx = x - r; xx <= x + r; ++xx) {
+            if (xx < 0 || yy < 0 || xx >= in.width || yy >= in.height) continue;
+            any = any || in.at(xx, yy);
+            all = all && in.at(xx, yy);
+          }
+        o.at(x, y) = dilate ? any : all;
+      }
+    return o;
+  };
+  return op(op(m, true), false);
+}
+
+inline ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows, const DetectParams& p) {
+  ImageU8 m(rgb.width, rgb.height, 0);
+  for (int y = 0; y < rgb.height; ++y)
+    for (int x = 0; x < rgb.width; ++x) {
+      if (y >= rows) continue;
+      if (p.sky_max_disparity_px > 0 && disp.at(x, y) != kInvalidDisp && disp.at(x, y) > p.sky_max_disparity_px * kDispScale) continue;
+      const detect::Hsv h = detect::rgb_to_hsv(rgb.at(x, y));
+      for (const HsvRange& r : p.sky_ranges)
+        if (detect::in_range(h, r)) m.at(x, y) = 1;
+    }
+  return m;
+}
+
+// Lloyd's k-means on the list of pixels (eq. 22-23), same init / ties / rounding rules as the core.
+inline detect::KMeansResult kmeans(const ImageI16& disp, const ImageU8& cand, int k, int max_it, int merge_q4 = 0) {
+  detect::KMeansResult res;
+  res.labels = ImageU8(disp.width, disp.height, kNoCluster);
+  std::vector<std::int32_t> pts;
+  for (std::size_t i = 0; i < disp.size(); ++i)
+    if (cand.data[i]) pts.push_back(disp.data[i]);
+  if (pts.empty()) return res;
+  std::vector<std::int32_t> sorted = pts;
+  std::sort(sorted.begin(), sorted.end());
+  const std::int64_t n = std::int64_t(pts.size());
+  std::vector<std::int32_t> c(static_cast<std::size_t>(k));
+  for (int i = 0; i < k; ++i) c[std::size_t(i)] = sorted[std::size_t(n * (2 * i + 1) / (2 * k))];
+  auto nearest = [&](std::int32_t q) {
+    int bi = 0;
+    for (int i = 1; i < k; ++i)
+      if (std::abs(q - c[std::size_t(i)]) < std::abs(q - c[std::size_t(bi)])) bi = i;
+    return bi;
+  };
+  int it = 0;
+  while (it < max_it) {
+    std::vector<std::int64_t> sum(static_cast<std::size_t>(k), 0), cnt(static_cast<std::size_t>(k), 0);
+    for (auto q : pts) {
+      const int i = nearest(q);
+      sum[std::size_t(i)] += q;
+      ++cnt[std::size_t(i)];
+    }
+    bool moved = false;
+    for (int i = 0; i < k; ++i)
+      if (cnt[std::size_t(i)]) {
+        // round half up of the mean
+        const auto nc = std::int32_t(std::floor(double(sum[std::size_t(i)]) / double(cnt[std::size_t(i)]) + 0.5));
+        moved |= nc != c[std::size_t(i)];
+        c[std::size_t(i)] = nc;
+      }
+    ++it;
+    if (!moved) break;
+  }
+  res.iterations = it;
+  std::vector<std::int64_t> cnt(static_cast<std::size_t>(k), 0);
+  for (auto q : pts) ++cnt[std::size_t(nearest(q))];
+  std::vector<int> order;
+  for (int i = 0; i < k; ++i) order.push_back(i);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return c[std::size_t(a)] > c[std::size_t(b)]; });
+  // Merge: walk the clusters nearest first; start a new output cluster when the gap to the previous
+  // non-empty centre is >= merge_q4; the output centre is the rounded mean of its pixels' centres.
+  std::vector<int> remap(static_cast<std::size_t>(k), -1);
+  std::vector<std::vector<int>> groups;
+  int prev = 0;
+  for (int i : order) {
+    if (!cnt[std::size_t(i)]) continue;
+    if (groups.empty() || merge_q4 <= 0 || prev - c[std::size_t(i)] >= merge_q4) groups.emplace_back();
+    groups.back().push_back(i);
+    remap[std::size_t(i)] = int(groups.size()) - 1;
+    prev = c[std::size_t(i)];
+  }
+  for (const auto& g : groups) {
+    double sw = 0, sc = 0;
+    for (int i : g) sw += double(cnt[std::size_t(i)]), sc += double(cnt[std::size_t(i)]) * c[std::size_t(i)];
+    res.centres_q4.push_back(std::int32_t(std::floor(sc / sw + 0.5)));
+    res.sizes.push_back(std::int64_t(sw));
+  }
+  for (std::size_t i = 0; i < disp.size(); ++i)
+    if (cand.data[i]) res.labels.data[i] = std::uint8_t(remap[std::size_t(nearest(disp.data[i]))]);
+  return res;
+}
+
+// eq. (24)-(25) cluster by cluster, cell by cell.
+inline detect::UDispResult u_disparity(const ImageI16& disp, const ImageU8& labels, int clusters, int bins,
+                                       const DetectParams& p) {
+  detect::UDispResult res;
+  res.kept = ImageU8(disp.width, disp.height, 0);
+  for (int c = 0; c < clusters; ++c) {
+    ImageI32 u(disp.width, bins, 0);  // u(x, d)
+    for (int y = 0; y < disp.height; ++y)
+      for (int x = 0; x < disp.width; ++x)
+        if (labels.at(x, y) == c) ++u.at(x, bin_of(disp.at(x, y)));
+    ImageU8 ok(disp.width, bins, 0), kept(disp.width, bins, 0);
+    for (int d = 0; d < bins; ++d)
+      for (int x = 0; x < disp.width; ++x) {
+        int s = 0;
+        for (int dd = d - p.udisp_d_tolerance_px; dd <= d + p.udisp_d_tolerance_px; ++dd)
+          if (dd >= 0 && dd < bins) s += u.at(x, dd);
+        ok.at(x, d) = u.at(x, d) > 0 && s >= p.udisp_min_height_px;
+      }
+    for (int d = 0; d < bins; ++d)
+      for (int x = 0; x < disp.width; ++x) {
+        if (!ok.at(x, d)) continue;
+        int a = x, b = x;
+        while (a > 0 && ok.at(a - 1, d)) --a;
+        while (b + 1 < disp.width && ok.at(b + 1, d)) ++b;
+        kept.at(x, d) = b - a + 1 >= p.udisp_min_run_px;
+      }
+    res.kept_cells.push_back(kept);
+  }
+  for (int y = 0; y < disp.height; ++y)
+    for (int x = 0; x < disp.width; ++x)
+      if (labels.at(x, y) != kNoCluster) res.kept.at(x, y) = res.kept_cells[labels.at(x, y)].at(x, bin_of(disp.at(x, y)));
+  return res;
+}
+
+// Flood fill (breadth first), components numbered in raster order of their first pixel.
+inline ImageI32 components(const ImageU8& m, const ImageI16& disp, int step, int* count) {
+  ImageI32 lab(m.width, m.height, 0);
+  int n = 0;
+  for (int y = 0; y < m.height; ++y)
+    for (int x = 0; x < m.width; ++x) {
+      if (!m.at(x, y) || lab.at(x, y)) continue;
+      lab.at(x, y) = ++n;
+      std::deque<std::pair<int, int>> q{{x, y}};
+      while (!q.empty()) {
+        auto [cx, cy] = q.front();
+        q.pop_front();
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int nx = cx + dx, ny = cy + dy;
+            if (nx < 0 || ny < 0 || nx >= m.width || ny >= m.height || !m.at(nx, ny) || lab.at(nx, ny)) continue;
+            if (std::abs(disp.at(nx, ny) - disp.at(cx, cy)) > step) continue;
+            lab.at(nx, ny) = n;
+            q.push_back({nx, ny});
+          }
+      }
+    }
+  *count = n;
+  return lab;
+}
+
+}  // namespace fs::ref

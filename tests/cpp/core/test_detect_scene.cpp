@@ -1,0 +1,188 @@
+// Detection behaviour on synthetic disparity maps with known geometry: road found and removed,
+// boxes recovered with their boxes and distances, speckle dropped, sky removed only in the upper
+// part, mono camera skips the sky stage, config [detect] round trip.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "config.hpp"
+#include "detect_config.hpp"
+#include "detect_scene.hpp"
+#include "fuzzystereo/detect.hpp"
+
+namespace fs {
+namespace {
+
+// 240x180, f = 200 px, B = 0.1 m, camera 0.5 m above a flat road: road d = 0.2 * (v - 90).
+// Box A: columns 40..90, Z = 2 m (d = 10 px), rows 90..140; box B: columns 150..200, Z = 4 m (d = 5 px), rows 95..115.
+test::Scene two_boxes(double noise, double holes, unsigned seed = 5) {
+  return test::make_scene(240, 180, {{40, 90, 2.0, 0.5}, {150, 200, 4.0, 0.4}}, seed, noise, holes, 200.0);
+}
+
+double iou(const Obstacle& o, const std::array<int, 4>& b) {
+  const int ix0 = std::max(o.x0, b[0]), iy0 = std::max(o.y0, b[1]), ix1 = std::min(o.x1, b[2]), iy1 = std::min(o.y1, b[3]);
+  if (ix1 < ix0 || iy1 < iy0) return 0.0;
+  const double inter = double(ix1 - ix0 + 1) * (iy1 - iy0 + 1);
+  const double a = double(o.x1 - o.x0 + 1) * (o.y1 - o.y0 + 1), bb = double(b[2] - b[0] + 1) * (b[3] - b[1] + 1);
+  return inter / (a + bb - inter);
+}
+
+TEST(DetectScene, RoadLineAndMaskRecovered) {
+  const auto s = two_boxes(0.2, 0.02);
+  const DetectResult r = Detector(DetectParams{}).detect(s.disp, s.rgb, s.calib);
+  ASSERT_TRUE(r.road.found);
+  EXPECT_NEAR(r.road.a, 0.2, 0.02);           // B / h
+  EXPECT_NEAR(-r.road.b / r.road.a, 90.0, 1.5);  // horizon at cy
+  EXPECT_NEAR(r.road.horizon_row, 91, 2);
+  // Road pixels (not under a box, below row 62) are in the mask; boxes mostly are not.
+  int road = 0, road_hit = 0, box = 0, box_hit = 0;
+  for (int y = 93; y < 180; ++y)
+    for (int x = 0; x < 240; ++x) {
+      bool in_box = false;
+      for (const auto& b : s.boxes) in_box = in_box || (x >= b[0] && x <= b[2] && y >= b[1] && y <= b[3]);
+      (in_box ? box : road)++;
+      (in_box ? box_hit : road_hit) += r.road_mask.at(x, y);
+    }
+  EXPECT_GT(double(road_hit) / road, 0.97);
+  EXPECT_LT(double(box_hit) / box, 0.30);  // only the few rows where a box meets the road
+  for (int y = 0; y < 88; ++y)
+    for (int x = 0; x < 240; ++x) ASSERT_EQ(r.road_mask.at(x, y), 0) << x << "," << y;
+}
+
+TEST(DetectScene, BoxesAndDistancesRecovered) {
+  for (double noise : {0.0, 0.25}) {
+    const auto s = two_boxes(noise, 0.03);
+    const DetectResult r = Detector(DetectParams{}).detect(s.disp, s.rgb, s.calib);
+    ASSERT_EQ(r.obstacles.size(), 2u) << "noise " << noise;
+    const Obstacle& a = r.obstacles[0];  // nearest first
+    const Obstacle& b = r.obstacles[1];
+    EXPECT_NEAR(a.distance_m, 2.0, 0.1);
+    EXPECT_NEAR(b.distance_m, 4.0, 0.25);
+    EXPECT_GT(iou(a, s.boxes[0]), 0.6);
+    EXPECT_GT(iou(b, s.boxes[1]), 0.6);
+    EXPECT_EQ(a.x0, 40);
+    EXPECT_EQ(a.x1, 90);
+    EXPECT_EQ(a.y0, 90);
+    EXPECT_EQ(a.cls, ObstacleClass::Mid);  // 2 m: near_m = 2 is exclusive
+    EXPECT_EQ(b.cls, ObstacleClass::Mid);
+    // Box A's centre column 65 is 55 px left of cx = 120: X = -55 * 2 / 200.
+    EXPECT_NEAR(a.lateral_m, -0.55, 0.03);
+    EXPECT_EQ(r.obstacle_labels.at(65, 100), 1);
+    EXPECT_EQ(r.obstacle_labels.at(175, 100), 2);
+    EXPECT_EQ(r.obstacle_labels.at(120, 160), 0);
+    for (int i = 0; i < int(DetectStage::Count); ++i) EXPECT_GE(r.timings.ms[std::size_t(i)], 0.0);
+  }
+}
+
+TEST(DetectScene, ClassesFollowLimits) {
+  DetectParams p;
+  p.near_m = 3.0;
+  p.far_m = 3.5;
+  const auto s = two_boxes(0.0, 0.0);
+  const DetectResult r = Detector(p).detect(s.disp, s.rgb, s.calib);
+  ASSERT_EQ(r.obstacles.size(), 2u);
+  EXPECT_EQ(r.obstacles[0].cls, ObstacleClass::Near);
+  EXPECT_EQ(r.obstacles[1].cls, ObstacleClass::Far);
+}
+
+TEST(DetectScene, SpeckleRemovedByUDisparityAndArea) {
+  auto s = two_boxes(0.0, 0.0);
+  // Isolated 6x6 blobs (too big for the road closing to swallow) of near disparities on the road:
+  // short and low in u-disparity.
+  for (int i = 0; i < 12; ++i)
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 6; ++x) s.disp.at(5 + 18 * i + x, 150 + y) = std::int16_t(16 * (20 + i));
+  const DetectResult r = Detector(DetectParams{}).detect(s.disp, s.rgb, s.calib);
+  EXPECT_EQ(r.obstacles.size(), 2u);
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(r.kept.at(7 + 18 * i, 152), 0);
+  // Turning the filter off lets the blobs through to the components (they then fail min area).
+  DetectParams loose;
+  loose.udisp_min_height_px = 1;
+  loose.udisp_min_run_px = 1;
+  loose.min_area_px = 5;
+  const DetectResult r2 = Detector(loose).detect(s.disp, s.rgb, s.calib);
+  EXPECT_GT(r2.obstacles.size(), 2u);
+}
+
+TEST(DetectScene, SkyOnlyInUpperPart) {
+  auto s = two_boxes(0.0, 0.0);
+  // A sky-blue object below the horizon (a blue car) must stay.
+  for (int y = 150; y < 170; ++y)
+    for (int x = 100; x < 130; ++x) s.rgb.at(x, y) = Rgb8{100, 150, 230};
+  const DetectResult r = Detector(DetectParams{}).detect(s.disp, s.rgb, s.calib);
+  EXPECT_FALSE(r.sky_skipped);
+  EXPECT_NEAR(r.sky_rows, 91, 2);  // horizon from the road line
+  int upper = 0;
+  for (int y = 0; y < 88; ++y)
+    for (int x = 0; x < 240; ++x) upper += r.sky_mask.at(x, y);
+  EXPECT_EQ(upper, 88 * 240);
+  for (int y = 150; y < 170; ++y)
+    for (int x = 100; x < 130; ++x) ASSERT_EQ(r.sky_mask.at(x, y), 0);
+  // Fraction mode: only the top 25 %.
+  DetectParams p;
+  p.sky_limit = SkyLimit::Fraction;
+  p.sky_upper_fraction = 0.25;
+  const DetectResult r2 = Detector(p).detect(s.disp, s.rgb, s.calib);
+  EXPECT_EQ(r2.sky_rows, 45);
+  EXPECT_EQ(r2.sky_mask.at(10, 44), 1);
+  EXPECT_EQ(r2.sky_mask.at(10, 45), 0);
+  // Overcast grey and sunset orange are sky too; a saturated green is not.
+  for (Rgb8 c : {Rgb8{200, 200, 205}, Rgb8{250, 140, 60}}) {
+    auto s2 = s;
+    for (int y = 0; y < 60; ++y)
+      for (int x = 0; x < 240; ++x) s2.rgb.at(x, y) = c;
+    EXPECT_EQ(Detector(DetectParams{}).detect(s2.disp, s2.rgb, s2.calib).sky_mask.at(80, 20), 1);
+  }
+  auto s3 = s;
+  s3.rgb.at(80, 20) = Rgb8{30, 160, 40};
+  EXPECT_EQ(Detector(DetectParams{}).detect(s3.disp, s3.rgb, s3.calib).sky_mask.at(80, 20), 0);
+}
+
+TEST(DetectScene, MonoCameraSkipsSky) {
+  const auto s = two_boxes(0.1, 0.02);
+  const DetectResult r = Detector(DetectParams{}).detect(s.disp, ImageRgb8{}, s.calib);
+  EXPECT_TRUE(r.sky_skipped);
+  EXPECT_EQ(r.sky_rows, 0);
+  ASSERT_EQ(r.sky_mask.size(), s.disp.size());
+  for (auto v : r.sky_mask.data) ASSERT_EQ(v, 0);
+  EXPECT_EQ(r.obstacles.size(), 2u);
+}
+
+TEST(DetectScene, NoRoadNoObstaclesHandled) {
+  // All invalid: nothing found, nothing crashes.
+  ImageI16 d(64, 48, kInvalidDisp);
+  StereoCalib c;
+  c.focal_px = 100, c.baseline_m = 0.1, c.cx = 32, c.cy = 24;
+  const DetectResult r = Detector(DetectParams{}).detect(d, ImageRgb8(64, 48), c);
+  EXPECT_FALSE(r.road.found);
+  EXPECT_TRUE(r.obstacles.empty());
+  EXPECT_EQ(r.sky_rows, 24);  // fallback to the upper fraction
+}
+
+TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
+  const Config cfg = parse_config("", "empty");
+  const DetectParams p = detect_params_from(cfg.values), d;
+  EXPECT_EQ(p.kmeans_k, 6);
+  EXPECT_EQ(p.kmeans_k, d.kmeans_k);
+  EXPECT_EQ(p.road_close_radius, d.road_close_radius);
+  EXPECT_EQ(p.udisp_min_height_px, d.udisp_min_height_px);
+  EXPECT_EQ(p.udisp_min_run_px, d.udisp_min_run_px);
+  EXPECT_EQ(p.min_area_px, d.min_area_px);
+  EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
+  EXPECT_DOUBLE_EQ(p.far_m, d.far_m);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(p.sky_ranges[i].h_min, d.sky_ranges[i].h_min);
+    EXPECT_EQ(p.sky_ranges[i].h_max, d.sky_ranges[i].h_max);
+    EXPECT_EQ(p.sky_ranges[i].s_min, d.sky_ranges[i].s_min);
+    EXPECT_EQ(p.sky_ranges[i].v_min, d.sky_ranges[i].v_min);
+  }
+  const DetectParams q = detect_params_from(parse_config("[detect]\nkmeans_k = 3\nsky_limit = \"fraction\"\n", "t").values);
+  EXPECT_EQ(q.kmeans_k, 3);
+  EXPECT_EQ(q.sky_limit, SkyLimit::Fraction);
+  EXPECT_THROW(parse_config("[detect]\nkmeans_k = 17\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nsky_limit = \"left\"\n", "t"), ConfigError);
+  EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);
+}
+
+}  // namespace
+}  // namespace fs
