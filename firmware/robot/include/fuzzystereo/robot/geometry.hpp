@@ -1,0 +1,46 @@
+// Small 2-D ground-plane types shared by odometry, tracking and planning. World frame: x forward
+// (east), y left, z up; yaw counter-clockwise from +x [rad].
+#pragma once
+#include <cmath>
+
+namespace fs::robot {
+
+struct Vec2 {
+  double x = 0, y = 0;
+};
+inline Vec2 operator+(Vec2 a, Vec2 b) { return {a.x + b.x, a.y + b.y}; }
+inline Vec2 operator-(Vec2 a, Vec2 b) { return {a.x - b.x, a.y - b.y}; }
+inline Vec2 operator*(double s, Vec2 a) { return {s * a.x, s * a.y}; }
+inline double dot(Vec2 a, Vec2 b) { return a.x * b.x + a.y * b.y; }
+inline double norm(Vec2 a) { return std::hypot(a.x, a.y); }
+
+struct Pose2D {
+  double x = 0, y = 0, yaw = 0;  // [m], [m], [rad]
+  Vec2 pos() const { return {x, y}; }
+};
+
+// Wrap an angle to (-pi, pi].
+inline double wrap_angle(double a) {
+  a = std::remainder(a, 2.0 * M_PI);
+  return a <= -M_PI ? a + 2.0 * M_PI : a;
+}
+
+// Obstacle for planning: a circle at time 0 moving with constant velocity (predicted position at
+// time t is c + t * vel). Oriented boxes are given to the planner as their bounding circle
+// (conservative; see docs/robot.md).
+struct CircleObstacle {
+  Vec2 c;           // centre [m]
+  double r = 0;     // radius [m]
+  Vec2 vel;         // [m/s]; zero for static obstacles
+  Vec2 at(double t) const { return c + t * vel; }
+};
+
+// Oriented box: centre, half extents along its own axes, heading [rad].
+struct BoxObstacle {
+  Vec2 c;
+  double half_len = 0, half_wid = 0, yaw = 0;
+  Vec2 vel;
+  CircleObstacle bounding_circle() const { return {c, std::hypot(half_len, half_wid), vel}; }
+};
+
+}  // namespace fs::robot

@@ -1,0 +1,97 @@
+// Parameter structs of the robot-side libraries, each filled from its config section by a
+// xxx_params_from(const fs::ConfigValues&) function (firmware/robot/params/params.cpp). The config
+// loader has already range-checked every field, so these functions only convert units
+// (degrees in files -> radians in code, ms -> ns) and never re-validate.
+#pragma once
+#include <cstdint>
+#include <string>
+
+namespace fs {
+struct ConfigValues;
+}
+
+namespace fs::robot {
+
+// [robot] — body geometry and motion limits.
+struct RobotParams {
+  double radius_m = 0.15;             // bounding circle of the body [m]
+  double wheel_base_m = 0.16;         // distance between the wheel contact points [m]
+  double max_speed_mps = 0.5;         // forward speed limit [m/s]
+  double max_accel_mps2 = 1.0;        // forward acceleration/deceleration limit [m/s^2]
+  double max_yaw_rate_radps = 2.0943951023931953;    // [rad/s] (file: max_yaw_rate_degps = 120)
+  double max_yaw_accel_radps2 = 6.283185307179586;  // [rad/s^2] (file: max_yaw_accel_degps2 = 360)
+  double max_wheel_speed_mps = 0.6;   // wheel surface speed at motor duty 1.0 [m/s]
+  double goal_tolerance_m = 0.15;     // goal reached when the centre is this close [m]
+  double stop_distance_m = 0.05;      // failsafe: free gap in front below which forward motion stops [m]
+  bool stop_allows_turning = true;    // failsafe stop still lets the robot turn on the spot
+};
+
+// [tracker] — Kalman filter eq. (26)-(32) and track management.
+struct TrackerParams {
+  double pos_sigma_m = 0.10;        // std of a position measurement per axis (R) [m]
+  double accel_sigma_mps2 = 0.5;    // white-noise acceleration std (Q) [m/s^2]
+  double init_vel_sigma_mps = 5.0;  // velocity std of a new track (P0, eq. 30) [m/s]
+  double gate_m = 0.5;              // association gate at zero uncertainty [m]
+  double gate_sigmas = 3.0;         // gate grows by this many predicted position stds
+  double gate_max_m = 2.0;          // upper bound of the gate [m]
+  int confirm_hits = 3;             // M: a track is confirmed after this many associated frames
+  int max_misses = 5;               // K: deleted after this many consecutive *visible* misses
+  double max_coast_s = 10.0;        // deleted after this long without any measurement [s]
+  bool velocity_measurement = true; // z = [p; v] with v the finite difference (eq. 31-32, H = I)
+};
+
+// [planner] — global grid A* + sampled-arc local planner.
+struct PlannerParams {
+  double safety_margin_m = 0.10;     // extra clearance wanted around obstacles [m]
+  double collision_margin_m = 0.02;  // hard clearance: closer counts as collision [m]
+  double horizon_s = 2.5;            // arcs are checked against predicted obstacles this far [s]
+  double sim_step_s = 0.1;           // time step of the arc check [s]
+  double control_period_s = 0.2;     // expected time between frames (dynamic window) [s]
+  double grid_resolution_m = 0.1;    // A* grid cell [m]
+  double grid_margin_m = 3.0;        // grid extends this far beyond start/goal [m]
+  double lookahead_m = 1.0;          // carrot distance along the global path [m]
+  int v_samples = 7;                 // forward-speed samples in the dynamic window
+  int w_samples = 15;                // yaw-rate samples in the dynamic window
+  double w_heading = 1.0;            // cost weight: heading error to the carrot [1/rad]
+  double w_clearance = 0.6;          // cost weight: lack of clearance (soft, within safety margin)
+  double w_speed = 0.4;              // cost weight: slowness (1 - v/vmax)
+  double w_progress = 1.5;           // cost weight: remaining distance to the carrot [1/m]
+  double uncertainty_sigmas = 1.0;   // obstacle radius grows by this many position stds
+  double uncertainty_max_m = 0.3;    // ... at most this much [m]
+};
+
+// [watchdog]
+struct WatchdogParams {
+  std::int64_t timeout_ns = 200'000'000;  // file: timeout_ms
+};
+
+// [motors]
+enum class MotorBackend { kSim, kGpiod };
+enum class MotorDriverChip { kL298N, kTB6612 };
+enum class PwmMode { kHardware, kSoftware };
+enum class StopMode { kBrake, kCoast };
+
+struct MotorParams {
+  MotorBackend backend = MotorBackend::kSim;
+  MotorDriverChip driver = MotorDriverChip::kL298N;
+  std::string gpio_chip = "gpiochip0";
+  int left_in1 = 5, left_in2 = 6, right_in1 = 20, right_in2 = 21;  // BCM line offsets
+  int stby = -1;                       // TB6612 STBY line; -1 = tied high / not wired
+  PwmMode pwm_mode = PwmMode::kHardware;
+  std::string pwm_sysfs_root = "/sys/class/pwm";
+  int pwm_chip = 0;
+  int left_pwm_channel = 0, right_pwm_channel = 1;  // hardware PWM channels (GPIO12 / GPIO13)
+  int left_pwm_line = 12, right_pwm_line = 13;      // software PWM: GPIO line offsets
+  double pwm_frequency_hz = 1000.0;
+  bool invert_left = false, invert_right = false;
+  StopMode stop_mode = StopMode::kBrake;
+  double max_duty = 1.0;               // duty at command 1.0 (caps motor voltage)
+};
+
+RobotParams robot_params_from(const ConfigValues& v);
+TrackerParams tracker_params_from(const ConfigValues& v);
+PlannerParams planner_params_from(const ConfigValues& v);
+WatchdogParams watchdog_params_from(const ConfigValues& v);
+MotorParams motor_params_from(const ConfigValues& v);
+
+}  // namespace fs::robot

@@ -1,0 +1,83 @@
+// Path planner for a differential-drive disc robot among moving circular obstacles.
+//   1. global: 8-connected A* on an occupancy grid of the obstacles' current (predicted) positions,
+//      inflated by robot radius + safety margin (retried with the bare collision margin, so gaps the
+//      margin closes are still found); gives guidance through narrow gaps and out of U-traps;
+//   2. local: sampled constant-(v, omega) arcs inside the dynamic window, each checked over
+//      horizon_s against every obstacle's PREDICTED position c + t * vel; admissible only when
+//      collision-free and the robot can still brake to a stop before the first contact; scored by
+//      heading to a carrot on the global path, progress, clearance and speed.
+// Runs every frame (no state but the last path for display). No global path -> status kBlocked and
+// a braking command; no admissible arc -> kWaiting and a braking command. docs/robot.md "Planner".
+#pragma once
+#include <string>
+#include <vector>
+
+#include "fuzzystereo/robot/geometry.hpp"
+#include "fuzzystereo/robot/odometry.hpp"
+#include "fuzzystereo/robot/params.hpp"
+
+namespace fs::robot {
+
+enum class PlanStatus {
+  kMoving,   // following an admissible arc
+  kReached,  // within goal tolerance: stop
+  kWaiting,  // a global path exists but no arc is safe now (e.g. a crossing obstacle): braking
+  kBlocked,  // no collision-free path to the goal exists: safe stop
+};
+const char* to_string(PlanStatus s);
+
+struct PlanOutput {
+  BodyTwist cmd;                 // requested (v, omega); the mixer applies acceleration limits
+  PlanStatus status = PlanStatus::kBlocked;
+  std::vector<Vec2> path;        // global path (world), start .. goal; empty when blocked
+  Vec2 carrot;                   // lookahead point the local planner steered to
+  bool reduced_margin = false;   // the path needed the bare collision margin (a tight gap)
+  double clearance_m = 0;        // smallest predicted surface gap along the chosen arc [m]
+};
+
+class Planner {
+ public:
+  Planner(const PlannerParams& pp, const RobotParams& rp) : pp_(pp), rp_(rp) {}
+  // pose: current pose; current: current body twist (for the dynamic window); obstacles at the
+  // current time with velocities (planning uses c + t * vel for t in [0, horizon]).
+  PlanOutput plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
+                  const std::vector<CircleObstacle>& obstacles) const;
+
+  const PlannerParams& params() const { return pp_; }
+  const RobotParams& robot() const { return rp_; }
+
+ private:
+  PlannerParams pp_;
+  RobotParams rp_;
+};
+
+// Length of the shortest path for a disc of radius `radius` from start to goal among static
+// circles (their velocities are ignored), or +infinity when none exists. Any-angle search
+// (Theta*) on a grid of `resolution_m` whose line-of-sight test is exact geometry (segment-to-circle
+// distance), so the result is within about 1-2 % of the exact Euclidean shortest path (checked
+// against the analytic tangent-arc-tangent length in the tests); docs/robot.md.
+double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal,
+                            double radius, double resolution_m = 0.05);
+
+// Left/right wheel command from (v, omega) with speed and acceleration limits.
+struct WheelCommand {
+  double left = 0, right = 0;  // normalised motor command in [-1, 1] (1 = max_wheel_speed_mps)
+  BodyTwist twist;             // the twist actually commanded after all limits
+};
+
+class DiffDriveMixer {
+ public:
+  explicit DiffDriveMixer(const RobotParams& rp) : rp_(rp) {}
+  // Limits v to [0, max_speed] (no reversing: the cameras look forward), omega to
+  // +-max_yaw_rate, their changes to the acceleration limits over dt, then scales both wheels
+  // down together (keeping the curvature) when one exceeds max_wheel_speed_mps.
+  WheelCommand mix(const BodyTwist& want, double dt);
+  void reset() { last_ = {}; }
+  const BodyTwist& last() const { return last_; }
+
+ private:
+  RobotParams rp_;
+  BodyTwist last_;
+};
+
+}  // namespace fs::robot

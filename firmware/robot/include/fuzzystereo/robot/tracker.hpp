@@ -1,0 +1,70 @@
+// Multi-target tracker: one CvKalman (eq. 26-32) per obstacle, gated greedy nearest-neighbour
+// association, confirmation after M hits, deletion after K consecutive misses counted only while
+// the predicted position is inside the sensor's view (so obstacles that left the camera view coast
+// and stay available to the planner). See docs/robot.md "Tracking".
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "fuzzystereo/robot/clock.hpp"
+#include "fuzzystereo/robot/geometry.hpp"
+#include "fuzzystereo/robot/kalman.hpp"
+#include "fuzzystereo/robot/params.hpp"
+
+namespace fs::robot {
+
+// One detected obstacle of the current frame, already in the world frame.
+struct ObstacleMeasurement {
+  Vec2 p;                  // ground-plane centre [m]
+  double radius_m = 0.1;   // half the measured width [m]
+  int distance_class = 0;  // detector's near/mid/far class (passed through)
+  double sigma_m = 0;      // position std of this measurement [m]; 0 = TrackerParams::pos_sigma_m
+};
+
+struct Track {
+  int id = 0;
+  CvKalman kf;
+  double radius_m = 0;
+  int distance_class = 0;
+  int hits = 0;                 // frames with an associated measurement
+  int misses = 0;               // consecutive visible misses
+  bool confirmed = false;
+  std::int64_t last_meas_ns = 0;
+  Vec2 last_meas_p;             // for the finite-difference velocity measurement
+  double last_meas_var = 0;     // its position variance [m^2]
+  bool updated_this_frame = false;
+
+  Vec2 pos() const { return {kf.px(), kf.py()}; }
+  Vec2 vel() const { return {kf.vx(), kf.vy()}; }
+};
+
+// Is a world point inside the sensor's field of view and range right now?
+using VisibilityFn = std::function<bool(Vec2)>;
+
+class MultiTracker {
+ public:
+  explicit MultiTracker(const TrackerParams& p) : p_(p) {}
+
+  // One frame at time t_ns: predict every track to t_ns, associate, update, manage tracks.
+  // Returns the index pairs (track id, measurement index) that were associated.
+  std::vector<std::pair<int, int>> step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
+                                        const VisibilityFn& visible);
+
+  const std::vector<Track>& tracks() const { return tracks_; }
+  // Planner input: tracks (confirmed only unless include_tentative) as moving circles; the radius
+  // grows by uncertainty_sigmas * position std, capped at uncertainty_max_m.
+  std::vector<CircleObstacle> obstacles(bool include_tentative, double uncertainty_sigmas,
+                                        double uncertainty_max_m) const;
+
+  const TrackerParams& params() const { return p_; }
+
+ private:
+  TrackerParams p_;
+  std::vector<Track> tracks_;
+  int next_id_ = 1;
+  std::int64_t last_t_ns_ = 0;
+  bool have_t_ = false;
+};
+
+}  // namespace fs::robot

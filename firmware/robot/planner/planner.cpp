@@ -1,0 +1,258 @@
+// Global grid A* + sampled-arc local planner (docs/robot.md "Planner").
+#include "fuzzystereo/robot/planner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "grid.hpp"
+
+namespace fs::robot {
+
+const char* to_string(PlanStatus s) {
+  switch (s) {
+    case PlanStatus::kMoving: return "moving";
+    case PlanStatus::kReached: return "reached";
+    case PlanStatus::kWaiting: return "waiting";
+    case PlanStatus::kBlocked: return "blocked";
+  }
+  return "?";
+}
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Obstacles slower than this count as static when deciding "blocked" (a path closed only by a
+// moving obstacle means wait, not blocked) [m/s].
+constexpr double kStaticSpeed = 0.05;
+// Grid size cap per axis (bounds the per-frame cost when obstacles are far apart).
+constexpr int kMaxCellsPerAxis = 300;
+
+struct GlobalPlan {
+  std::vector<Vec2> path;
+  detail::Grid grid;
+  bool reduced_margin = false;
+  bool only_static = false;
+};
+
+bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, double inflate, Vec2 start, Vec2 goal,
+                      const PlannerParams& pp, GlobalPlan& out) {
+  Vec2 lo{std::min(start.x, goal.x) - pp.grid_margin_m, std::min(start.y, goal.y) - pp.grid_margin_m};
+  Vec2 hi{std::max(start.x, goal.x) + pp.grid_margin_m, std::max(start.y, goal.y) + pp.grid_margin_m};
+  detail::Grid& g = out.grid;
+  g.init(lo, hi, pp.grid_resolution_m, kMaxCellsPerAxis);
+  for (const CircleObstacle& o : obs) {
+    if (static_only && norm(o.vel) > kStaticSpeed) continue;
+    g.fill_disc(o.c, o.r + inflate);
+  }
+  // The robot may already be inside an inflated disc (margin violated): free its own cell
+  // neighbourhood so the search can lead it out; the local planner enforces the hard margin.
+  int sx, sy;
+  g.cell_of(start, sx, sy);
+  if (g.inside(sx, sy) && g.blocked[g.idx(sx, sy)]) g.clear_disc(start, 1.5 * g.res);
+  out.path = detail::astar(g, start, goal);
+  return !out.path.empty();
+}
+
+GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 goal, const PlannerParams& pp,
+                       const RobotParams& rp) {
+  const double full = rp.radius_m + pp.safety_margin_m, bare = rp.radius_m + pp.collision_margin_m;
+  GlobalPlan gp;
+  if (build_and_search(obs, false, full, start, goal, pp, gp)) return gp;
+  gp.reduced_margin = true;
+  if (build_and_search(obs, false, bare, start, goal, pp, gp)) return gp;
+  gp.only_static = true;
+  gp.reduced_margin = false;
+  if (build_and_search(obs, true, full, start, goal, pp, gp)) return gp;
+  gp.reduced_margin = true;
+  build_and_search(obs, true, bare, start, goal, pp, gp);
+  return gp;
+}
+
+// Furthest point along the path within lookahead whose straight segment from the robot is free.
+Vec2 pick_carrot(const GlobalPlan& gp, Vec2 pos, double lookahead) {
+  const auto& path = gp.path;
+  Vec2 best = path.size() > 1 ? path[1] : path.back();
+  double along = 0;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    along += norm(path[i] - path[i - 1]);
+    if (along > lookahead && i > 1) break;
+    if (gp.grid.segment_free(pos, path[i])) best = path[i];
+  }
+  return best;
+}
+
+struct ArcEval {
+  double t_collide = kInf;  // first time the hard margin is violated
+  double min_gap = kInf;    // smallest surface gap before that
+  Pose2D end;
+};
+
+// Robot along a constant (v, omega) arc (brake = true: v and omega decay at the acceleration
+// limits after the first control period, i.e. the stop the robot can always still make).
+ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::vector<CircleObstacle>& obs,
+                 const PlannerParams& pp, const RobotParams& rp) {
+  ArcEval e;
+  Pose2D p = p0;
+  const int steps = std::max(1, static_cast<int>(std::lround(pp.horizon_s / pp.sim_step_s)));
+  const double dt = pp.horizon_s / steps;
+  double cv = v, cw = w;
+  for (int k = 1; k <= steps; ++k) {
+    const double t = k * dt;
+    if (brake && t > pp.control_period_s) {
+      cv = std::max(0.0, cv - rp.max_accel_mps2 * dt);
+      const double dw = rp.max_yaw_accel_radps2 * dt;
+      cw = std::abs(cw) <= dw ? 0.0 : cw - std::copysign(dw, cw);
+    }
+    p = integrate_pose(p, {cv, cw}, dt);
+    for (const CircleObstacle& o : obs) {
+      const double gap = norm(p.pos() - o.at(t)) - o.r - rp.radius_m;
+      if (gap < pp.collision_margin_m) {
+        if (e.t_collide == kInf) e.t_collide = t;
+      }
+      if (e.t_collide == kInf) e.min_gap = std::min(e.min_gap, gap);
+    }
+    if (e.t_collide != kInf) break;
+  }
+  e.end = p;
+  return e;
+}
+
+}  // namespace
+
+PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
+                         const std::vector<CircleObstacle>& obstacles) const {
+  PlanOutput out;
+  const Vec2 pos = pose.pos();
+  const double dist_goal = norm(goal - pos);
+  if (dist_goal <= rp_.goal_tolerance_m) {
+    out.status = PlanStatus::kReached;
+    out.carrot = goal;
+    return out;
+  }
+
+  // 1. global guidance.
+  GlobalPlan gp = global_plan(obstacles, pos, goal, pp_, rp_);
+  if (gp.path.empty()) {
+    out.status = PlanStatus::kBlocked;  // safe stop: the mixer ramps v, omega down to 0
+    return out;
+  }
+  out.path = gp.path;
+  out.reduced_margin = gp.reduced_margin;
+  out.carrot = pick_carrot(gp, pos, pp_.lookahead_m);
+
+  // Only obstacles the robot can reach within the horizon matter for the arcs.
+  const double reach = rp_.max_speed_mps * pp_.horizon_s + rp_.radius_m + pp_.safety_margin_m;
+  std::vector<CircleObstacle> near;
+  for (const CircleObstacle& o : obstacles)
+    if (norm(o.c - pos) - o.r - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
+
+  // 2. dynamic window around the current twist.
+  const double T = pp_.control_period_s;
+  double vmax = std::min(rp_.max_speed_mps, current.v + rp_.max_accel_mps2 * T);
+  // slow down towards the goal so the robot can stop inside the tolerance
+  vmax = std::min(vmax, std::sqrt(2.0 * rp_.max_accel_mps2 * std::max(0.0, dist_goal - 0.5 * rp_.goal_tolerance_m)));
+  const double vmin = std::max(0.0, current.v - rp_.max_accel_mps2 * T);
+  const double wmax = std::min(rp_.max_yaw_rate_radps, current.omega + rp_.max_yaw_accel_radps2 * T);
+  const double wmin = std::max(-rp_.max_yaw_rate_radps, current.omega - rp_.max_yaw_accel_radps2 * T);
+
+  const int nv = std::max(2, pp_.v_samples), nw = std::max(3, pp_.w_samples);
+  double best_cost = kInf;
+  BodyTwist best{};
+  double best_gap = 0;
+  const double carrot_dist0 = norm(out.carrot - pos);
+  for (int iv = 0; iv < nv; ++iv) {
+    const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
+    for (int iw = 0; iw < nw; ++iw) {
+      const double w = wmin + (wmax - wmin) * iw / (nw - 1);
+      const ArcEval a = eval_arc(pose, v, w, false, near, pp_, rp_);
+      double collide_pen = 0;
+      if (a.t_collide != kInf) {
+        // admissible only if braking from (v, w) after one control period stays clear
+        const ArcEval b = eval_arc(pose, v, w, true, near, pp_, rp_);
+        if (b.t_collide != kInf) continue;
+        collide_pen = 1.0 - a.t_collide / pp_.horizon_s;  // prefer arcs that stay clear longer
+      }
+      // Evaluate the arc where it ends (or where it would hit something).
+      const Vec2 to_c = out.carrot - a.end.pos();
+      const double heading_err = norm(to_c) < 1e-6 ? 0.0 : std::abs(wrap_angle(std::atan2(to_c.y, to_c.x) - a.end.yaw));
+      const double progress = (norm(to_c) - carrot_dist0) / std::max(1e-3, rp_.max_speed_mps * pp_.horizon_s);
+      const double soft = pp_.safety_margin_m + rp_.radius_m;
+      const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
+      const double cost = pp_.w_heading * heading_err / M_PI + pp_.w_progress * progress +
+                          pp_.w_clearance * clear_pen + pp_.w_speed * (1.0 - v / std::max(1e-6, rp_.max_speed_mps)) +
+                          2.0 * collide_pen;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = {v, w};
+        best_gap = a.min_gap;
+      }
+    }
+  }
+  if (best_cost == kInf) {
+    out.status = PlanStatus::kWaiting;  // brake: nothing is safe to drive right now
+    out.cmd = {0.0, 0.0};
+    return out;
+  }
+  out.cmd = best;
+  out.clearance_m = best_gap;
+  out.status = gp.only_static ? PlanStatus::kWaiting : PlanStatus::kMoving;
+  return out;
+}
+
+double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal, double radius,
+                            double resolution_m) {
+  // Free space: centre farther than r_i + radius from every circle centre.
+  auto free_pt = [&](Vec2 p) {
+    for (const CircleObstacle& o : obstacles)
+      if (norm(p - o.c) < o.r + radius) return false;
+    return true;
+  };
+  if (!free_pt(start) || !free_pt(goal)) return kInf;
+  auto los = [&](Vec2 a, Vec2 b) {  // exact segment-to-circle distance
+    const Vec2 ab = b - a;
+    const double l2 = dot(ab, ab);
+    for (const CircleObstacle& o : obstacles) {
+      const double t = l2 > 0 ? std::clamp(dot(o.c - a, ab) / l2, 0.0, 1.0) : 0.0;
+      if (norm(a + t * ab - o.c) < o.r + radius) return false;
+    }
+    return true;
+  };
+  double margin = 1.0;
+  for (const CircleObstacle& o : obstacles) margin = std::max(margin, 2.0 * (o.r + radius));
+  Vec2 lo{std::min(start.x, goal.x), std::min(start.y, goal.y)}, hi{std::max(start.x, goal.x), std::max(start.y, goal.y)};
+  for (const CircleObstacle& o : obstacles) {
+    lo = {std::min(lo.x, o.c.x - o.r), std::min(lo.y, o.c.y - o.r)};
+    hi = {std::max(hi.x, o.c.x + o.r), std::max(hi.y, o.c.y + o.r)};
+  }
+  lo = lo - Vec2{margin, margin};
+  hi = hi + Vec2{margin, margin};
+  detail::Grid g;
+  g.init(lo, hi, resolution_m, 2000);
+  for (int iy = 0; iy < g.ny; ++iy)
+    for (int ix = 0; ix < g.nx; ++ix) g.blocked[g.idx(ix, iy)] = free_pt(g.center(ix, iy)) ? 0 : 1;
+  return detail::theta_star_length(g, start, goal, los);
+}
+
+WheelCommand DiffDriveMixer::mix(const BodyTwist& want, double dt) {
+  BodyTwist t = want;
+  if (!std::isfinite(t.v) || !std::isfinite(t.omega)) t = {0.0, 0.0};
+  t.v = std::clamp(t.v, 0.0, rp_.max_speed_mps);
+  t.omega = std::clamp(t.omega, -rp_.max_yaw_rate_radps, rp_.max_yaw_rate_radps);
+  const double dv = rp_.max_accel_mps2 * dt, dw = rp_.max_yaw_accel_radps2 * dt;
+  t.v = std::clamp(t.v, last_.v - dv, last_.v + dv);
+  t.omega = std::clamp(t.omega, last_.omega - dw, last_.omega + dw);
+  double vl, vr;
+  wheels_from_twist(t, rp_.wheel_base_m, vl, vr);
+  const double m = std::max(std::abs(vl), std::abs(vr));
+  if (m > rp_.max_wheel_speed_mps) {  // scale both: same curvature, lower speed
+    const double s = rp_.max_wheel_speed_mps / m;
+    vl *= s;
+    vr *= s;
+    t = twist_from_wheels(vl, vr, rp_.wheel_base_m);
+  }
+  last_ = t;
+  return {vl / rp_.max_wheel_speed_mps, vr / rp_.max_wheel_speed_mps, t};
+}
+
+}  // namespace fs::robot

@@ -1,0 +1,138 @@
+// Multi-target tracker around CvKalman (eq. 26-32). Association is greedy global nearest
+// neighbour: all (track, measurement) pairs inside the gate sorted by distance, the closest pair
+// taken first. With the handful of obstacles a stereo detector reports per frame (< 20) and gates
+// much smaller than the spacing of distinct obstacles, this equals the optimal (Hungarian)
+// assignment except in rare crossing cases, costs O(nm log nm), and is deterministic; see
+// docs/robot.md.
+#include "fuzzystereo/robot/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fs::robot {
+namespace {
+// Smoothing of the measured radius (obstacle width / 2 changes with the view): EMA weight of a new
+// measurement. Not configurable: the planner inflates by the position uncertainty anyway.
+constexpr double kRadiusEma = 0.3;
+}  // namespace
+
+std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
+                                                    const VisibilityFn& visible) {
+  // 1. predict every track to t (eq. 26).
+  if (have_t_ && t_ns > last_t_ns_) {
+    const double dt = ns_to_s(t_ns - last_t_ns_);
+    for (Track& tr : tracks_) tr.kf.predict(dt, p_.accel_sigma_mps2);
+  }
+  if (!have_t_ || t_ns > last_t_ns_) last_t_ns_ = t_ns;
+  have_t_ = true;
+  for (Track& tr : tracks_) tr.updated_this_frame = false;
+
+  // 2. gated greedy nearest-neighbour association.
+  struct Cand {
+    double d;
+    int ti, mi;
+  };
+  std::vector<Cand> cands;
+  for (int ti = 0; ti < static_cast<int>(tracks_.size()); ++ti) {
+    const Track& tr = tracks_[ti];
+    const double gate = std::min(p_.gate_max_m, p_.gate_m + p_.gate_sigmas * tr.kf.pos_sigma());
+    for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
+      const double d = norm(meas[mi].p - tr.pos());
+      if (d <= gate) cands.push_back({d, ti, mi});
+    }
+  }
+  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) {
+    return a.d != b.d ? a.d < b.d : (a.ti != b.ti ? a.ti < b.ti : a.mi < b.mi);
+  });
+  std::vector<int> meas_of(tracks_.size(), -1);
+  std::vector<char> used(meas.size(), 0);
+  std::vector<std::pair<int, int>> assoc;
+  for (const Cand& c : cands) {
+    if (meas_of[c.ti] >= 0 || used[c.mi]) continue;
+    meas_of[c.ti] = c.mi;
+    used[c.mi] = 1;
+  }
+
+  // 3. update associated tracks (eq. 31-32), count misses of the others.
+  for (int ti = 0; ti < static_cast<int>(tracks_.size()); ++ti) {
+    Track& tr = tracks_[ti];
+    const int mi = meas_of[ti];
+    if (mi < 0) {
+      if (visible && visible(tr.pos())) ++tr.misses;  // out of view: coast, no miss counted
+      continue;
+    }
+    const ObstacleMeasurement& m = meas[mi];
+    const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+    const double var = sigma * sigma;
+    const double dtm = ns_to_s(t_ns - tr.last_meas_ns);
+    if (p_.velocity_measurement && tr.hits >= 1 && dtm > 1e-6) {
+      // z = [p; v], v = finite difference to this track's previous measurement. With independent
+      // position noise var_k, var_{k-1}: Var(v) = (var_k + var_{k-1}) / dt^2, Cov(p, v) = var_k / dt.
+      // R is that covariance (the paper's R is diagonal; the p-v cross term is kept because it is
+      // exactly the noise of the vector we feed, see docs/robot.md).
+      const Vec2 v = (1.0 / dtm) * (m.p - tr.last_meas_p);
+      const double prev_var = tr.last_meas_var;
+      Vec4 z(m.p.x, m.p.y, v.x, v.y);
+      Mat4 R = Mat4::Zero();
+      R(0, 0) = R(1, 1) = var;
+      R(2, 2) = R(3, 3) = (var + prev_var) / (dtm * dtm);
+      R(0, 2) = R(2, 0) = R(1, 3) = R(3, 1) = var / dtm;
+      tr.kf.update(z, R);
+    } else {
+      tr.kf.update_position(m.p.x, m.p.y, var);
+    }
+    tr.radius_m = (1.0 - kRadiusEma) * tr.radius_m + kRadiusEma * m.radius_m;
+    tr.distance_class = m.distance_class;
+    ++tr.hits;
+    tr.misses = 0;
+    tr.confirmed = tr.confirmed || tr.hits >= p_.confirm_hits;
+    tr.last_meas_ns = t_ns;
+    tr.last_meas_p = m.p;
+    tr.last_meas_var = var;
+    tr.updated_this_frame = true;
+    assoc.emplace_back(tr.id, mi);
+  }
+
+  // 4. delete: confirmed after K consecutive visible misses, tentative after the first one, any
+  // track after max_coast_s without a measurement.
+  const std::int64_t max_coast_ns = s_to_ns(p_.max_coast_s);
+  std::erase_if(tracks_, [&](const Track& tr) {
+    if (tr.updated_this_frame) return false;
+    if (t_ns - tr.last_meas_ns > max_coast_ns) return true;
+    return tr.confirmed ? tr.misses >= p_.max_misses : tr.misses >= 1;
+  });
+
+  // 5. new tentative tracks from unassociated measurements (eq. 30: huge velocity variance).
+  for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
+    if (used[mi]) continue;
+    const ObstacleMeasurement& m = meas[mi];
+    const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+    Track tr;
+    tr.id = next_id_++;
+    tr.kf.init(m.p.x, m.p.y, sigma * sigma, p_.init_vel_sigma_mps * p_.init_vel_sigma_mps);
+    tr.radius_m = m.radius_m;
+    tr.distance_class = m.distance_class;
+    tr.hits = 1;
+    tr.confirmed = p_.confirm_hits <= 1;
+    tr.last_meas_ns = t_ns;
+    tr.last_meas_p = m.p;
+    tr.last_meas_var = sigma * sigma;
+    tr.updated_this_frame = true;
+    assoc.emplace_back(tr.id, mi);
+    tracks_.push_back(tr);
+  }
+  return assoc;
+}
+
+std::vector<CircleObstacle> MultiTracker::obstacles(bool include_tentative, double uncertainty_sigmas,
+                                                    double uncertainty_max_m) const {
+  std::vector<CircleObstacle> out;
+  for (const Track& tr : tracks_) {
+    if (!tr.confirmed && !include_tentative) continue;
+    const double grow = std::min(uncertainty_max_m, uncertainty_sigmas * tr.kf.pos_sigma());
+    out.push_back({tr.pos(), tr.radius_m + grow, tr.vel()});
+  }
+  return out;
+}
+
+}  // namespace fs::robot

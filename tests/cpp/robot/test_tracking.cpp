@@ -1,0 +1,237 @@
+// Kalman filter (eq. 26-32) and multi-target tracker.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <iostream>
+#include <random>
+
+#include "config.hpp"
+#include "fuzzystereo/robot/kalman.hpp"
+#include "fuzzystereo/robot/params.hpp"
+#include "fuzzystereo/robot/tracker.hpp"
+
+namespace fs::robot {
+namespace {
+
+TEST(Kalman, MatricesHaveThePaperForm) {
+  const Mat4 F = CvKalman::F(0.2);  // eq. (28)
+  Mat4 expect = Mat4::Identity();
+  expect(0, 2) = expect(1, 3) = 0.2;
+  EXPECT_TRUE(F.isApprox(expect));
+  const Mat4 Q = CvKalman::Q(0.2, 0.5);
+  EXPECT_TRUE(Q.isApprox(Q.transpose()));
+  Eigen::SelfAdjointEigenSolver<Mat4> es(Q);
+  EXPECT_GE(es.eigenvalues().minCoeff(), -1e-15);
+  EXPECT_NEAR(Q(2, 2), 0.25 * 0.04, 1e-12);  // sa^2 dt^2
+}
+
+TEST(Kalman, PredictMovesByVelocityEq29) {
+  CvKalman kf;
+  kf.init(1.0, 2.0, 0.01, 1.0);
+  kf.update(Vec4(1.0, 2.0, 0.5, -0.25), Mat4::Identity() * 1e-9);  // pin the state
+  kf.predict(2.0, 0.0);
+  EXPECT_NEAR(kf.px(), 2.0, 1e-6);
+  EXPECT_NEAR(kf.py(), 1.5, 1e-6);
+  EXPECT_NEAR(kf.vx(), 0.5, 1e-6);
+}
+
+TEST(Kalman, UpdateMatchesTextbookFormulaWithExplicitH) {
+  CvKalman kf;
+  kf.init(0.3, -0.2, 0.04, 4.0);
+  kf.predict(0.1, 0.5);
+  const Vec4 x0 = kf.x();
+  const Mat4 P0 = kf.P();
+  Mat4 R = Mat4::Identity() * 0.01;
+  R(2, 2) = R(3, 3) = 2.0;
+  const Vec4 z(0.35, -0.1, 0.4, 0.9);
+  kf.update(z, R);
+  const Mat4 H = Mat4::Identity();
+  const Mat4 K = P0 * H.transpose() * (H * P0 * H.transpose() + R).inverse();  // eq. (31)
+  const Vec4 x1 = x0 + K * (z - H * x0);                                        // eq. (32)
+  const Mat4 P1 = P0 - K * H * P0;
+  EXPECT_TRUE(kf.x().isApprox(x1, 1e-12));
+  EXPECT_TRUE(kf.P().isApprox(P1, 1e-12));
+}
+
+struct TrackStats {
+  double filt_pos_rmse = 0, raw_pos_rmse = 0, vel_rmse_after10 = 0, vel_p95_after10 = 0, vel_max_after10 = 0;
+};
+
+// Constant-velocity ground truth with Gaussian position noise, one obstacle per trajectory.
+TrackStats run_cv_trials(const TrackerParams& tp, double sigma, double dt, int frames, int trials, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  double se_f = 0, se_r = 0, se_v = 0;
+  long np = 0, nv = 0;
+  std::vector<double> verr;
+  for (int k = 0; k < trials; ++k) {
+    MultiTracker mt(tp);
+    const Vec2 p0{3.0 + u(rng), 2.0 * u(rng)}, v{0.6 * u(rng), 0.6 * u(rng)};
+    for (int f = 0; f < frames; ++f) {
+      const double t = f * dt;
+      const Vec2 truth = p0 + t * v;
+      const Vec2 z{truth.x + sigma * n01(rng), truth.y + sigma * n01(rng)};
+      mt.step(s_to_ns(t), {{z, 0.2, 1, sigma}}, [](Vec2) { return true; });
+      EXPECT_EQ(mt.tracks().size(), 1u);
+      const Track& tr = mt.tracks()[0];
+      se_f += std::pow(norm(tr.pos() - truth), 2);
+      se_r += std::pow(norm(z - truth), 2);
+      ++np;
+      if (f >= 10) {
+        const double e = norm(tr.vel() - v);
+        se_v += e * e;
+        ++nv;
+        verr.push_back(e);
+      }
+    }
+  }
+  std::sort(verr.begin(), verr.end());
+  return {std::sqrt(se_f / np), std::sqrt(se_r / np), std::sqrt(se_v / nv), verr[verr.size() * 95 / 100], verr.back()};
+}
+
+TEST(Tracker, ConstantVelocityTargetsBeatRawMeasurements) {
+  // 10 Hz frames, 5 cm position noise (stereo at a few metres), 100 seeded trajectories of 60 frames.
+  TrackerParams tp;
+  tp.accel_sigma_mps2 = 0.2;
+  const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 100, 42);
+  std::cout << "[ tracking ] position RMSE filter " << s.filt_pos_rmse << " m vs raw " << s.raw_pos_rmse
+            << " m; velocity error after 10 frames: RMS " << s.vel_rmse_after10 << " m/s, p95 " << s.vel_p95_after10
+            << " m/s, max " << s.vel_max_after10 << " m/s\n";
+  RecordProperty("filt_pos_rmse_m", std::to_string(s.filt_pos_rmse));
+  RecordProperty("raw_pos_rmse_m", std::to_string(s.raw_pos_rmse));
+  RecordProperty("vel_rmse_after10_mps", std::to_string(s.vel_rmse_after10));
+  EXPECT_LT(s.filt_pos_rmse, 0.8 * s.raw_pos_rmse);
+  EXPECT_LT(s.vel_rmse_after10, 0.1);
+  EXPECT_LT(s.vel_p95_after10, 0.1);
+}
+
+TEST(Tracker, PositionOnlyVariantAlsoConverges) {
+  TrackerParams tp;
+  tp.accel_sigma_mps2 = 0.2;
+  tp.velocity_measurement = false;
+  const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 50, 7);
+  std::cout << "[ tracking ] position-only update: position RMSE " << s.filt_pos_rmse << " m, velocity RMS after 10 "
+            << s.vel_rmse_after10 << " m/s\n";
+  EXPECT_LT(s.filt_pos_rmse, s.raw_pos_rmse);
+  EXPECT_LT(s.vel_rmse_after10, 0.1);
+}
+
+TEST(Tracker, ConfirmationAfterMHits) {
+  TrackerParams tp;
+  tp.confirm_hits = 3;
+  MultiTracker mt(tp);
+  auto vis = [](Vec2) { return true; };
+  for (int f = 0; f < 3; ++f) {
+    mt.step(s_to_ns(0.1 * f), {{{2.0, 0.0}, 0.2, 0, 0}}, vis);
+    ASSERT_EQ(mt.tracks().size(), 1u);
+    EXPECT_EQ(mt.tracks()[0].confirmed, f == 2) << "frame " << f;
+  }
+  EXPECT_EQ(mt.obstacles(false, 0, 0).size(), 1u);
+}
+
+TEST(Tracker, TentativeTrackDiesOnFirstVisibleMiss) {
+  MultiTracker mt(TrackerParams{});
+  auto vis = [](Vec2) { return true; };
+  mt.step(0, {{{2.0, 0.0}, 0.2, 0, 0}}, vis);
+  mt.step(s_to_ns(0.1), {}, vis);
+  EXPECT_TRUE(mt.tracks().empty());
+}
+
+TEST(Tracker, DeletedAfterKVisibleMissesButCoastsOutOfView) {
+  TrackerParams tp;
+  tp.confirm_hits = 2;
+  tp.max_misses = 4;
+  tp.max_coast_s = 5.0;
+  auto confirmed_tracker = [&] {
+    MultiTracker mt(tp);
+    for (int f = 0; f < 3; ++f) mt.step(s_to_ns(0.1 * f), {{{2.0, 0.5}, 0.2, 0, 0}}, [](Vec2) { return true; });
+    return mt;
+  };
+  // In view: K - 1 misses keep it, the K-th deletes it.
+  MultiTracker a = confirmed_tracker();
+  for (int f = 3; f < 3 + tp.max_misses - 1; ++f) a.step(s_to_ns(0.1 * f), {}, [](Vec2) { return true; });
+  EXPECT_EQ(a.tracks().size(), 1u);
+  a.step(s_to_ns(0.1 * (3 + tp.max_misses)), {}, [](Vec2) { return true; });
+  EXPECT_TRUE(a.tracks().empty());
+  // Out of view (e.g. the robot turned away): kept, coasting with growing uncertainty...
+  MultiTracker b = confirmed_tracker();
+  const double sigma0 = b.tracks()[0].kf.pos_sigma();
+  for (int f = 3; f < 40; ++f) b.step(s_to_ns(0.1 * f), {}, [](Vec2) { return false; });
+  ASSERT_EQ(b.tracks().size(), 1u);
+  EXPECT_EQ(b.tracks()[0].misses, 0);
+  EXPECT_GT(b.tracks()[0].kf.pos_sigma(), 2.0 * sigma0);
+  // ...until max_coast_s without any measurement.
+  b.step(s_to_ns(5.3), {}, [](Vec2) { return false; });
+  EXPECT_TRUE(b.tracks().empty());
+}
+
+TEST(Tracker, TwoTargetsKeepTheirIdentities) {
+  TrackerParams tp;
+  tp.confirm_hits = 2;
+  MultiTracker mt(tp);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0.0, 0.03);
+  int id_a = -1, id_b = -1;
+  for (int f = 0; f < 50; ++f) {
+    const double t = 0.1 * f;
+    const Vec2 a{1.0 + 0.3 * t, 0.6}, b{3.0 - 0.3 * t, -0.6};  // pass each other 1.2 m apart
+    std::vector<ObstacleMeasurement> m = {{{b.x + n(rng), b.y + n(rng)}, 0.2, 0, 0.03},
+                                          {{a.x + n(rng), a.y + n(rng)}, 0.2, 0, 0.03}};
+    if (f % 2) std::swap(m[0], m[1]);  // order must not matter
+    mt.step(s_to_ns(t), m, [](Vec2) { return true; });
+    ASSERT_EQ(mt.tracks().size(), 2u) << "frame " << f;
+    for (const Track& tr : mt.tracks()) {
+      const bool is_a = norm(tr.pos() - a) < norm(tr.pos() - b);
+      int& id = is_a ? id_a : id_b;
+      if (id < 0) id = tr.id;
+      EXPECT_EQ(tr.id, id) << "frame " << f;
+    }
+  }
+  for (const Track& tr : mt.tracks()) EXPECT_NEAR(std::abs(tr.vel().x), 0.3, 0.1);
+}
+
+TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
+  const Config c = parse_config("", "default.toml");
+  const TrackerParams t = tracker_params_from(c.values), d;
+  EXPECT_DOUBLE_EQ(t.pos_sigma_m, d.pos_sigma_m);
+  EXPECT_EQ(t.confirm_hits, d.confirm_hits);
+  EXPECT_EQ(t.max_misses, d.max_misses);
+  const RobotParams r = robot_params_from(c.values), rd;
+  EXPECT_NEAR(r.max_yaw_rate_radps, rd.max_yaw_rate_radps, 1e-12);
+  EXPECT_NEAR(r.max_yaw_accel_radps2, rd.max_yaw_accel_radps2, 1e-12);
+  EXPECT_DOUBLE_EQ(r.stop_distance_m, rd.stop_distance_m);
+  const PlannerParams p = planner_params_from(c.values), pd;
+  EXPECT_DOUBLE_EQ(p.control_period_s, pd.control_period_s);
+  EXPECT_DOUBLE_EQ(p.horizon_s, pd.horizon_s);
+  EXPECT_EQ(watchdog_params_from(c.values).timeout_ns, 200'000'000);
+  const MotorParams m = motor_params_from(c.values);
+  EXPECT_EQ(m.backend, MotorBackend::kSim);
+  EXPECT_EQ(m.left_pwm_channel, 0);
+  EXPECT_EQ(m.right_pwm_channel, 1);
+}
+
+TEST(Tracker, ConfigOverridesAndErrors) {
+  const Config c = parse_config("[motors]\nbackend = \"gpiod\"\ndriver = \"tb6612\"\nstby = 22\n[tracker]\nconfirm_hits = 5\n", "t.toml");
+  const MotorParams m = motor_params_from(c.values);
+  EXPECT_EQ(m.backend, MotorBackend::kGpiod);
+  EXPECT_EQ(m.driver, MotorDriverChip::kTB6612);
+  EXPECT_EQ(m.stby, 22);
+  EXPECT_EQ(tracker_params_from(c.values).confirm_hits, 5);
+  try {
+    parse_config("[motors]\nbackend = \"pigpio\"\n", "t.toml");
+    FAIL() << "bad backend accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("motors.backend"), std::string::npos) << e.what();
+  }
+  try {
+    parse_config("[watchdog]\ntimeout_ms = 5\n", "t.toml");
+    FAIL() << "bad timeout accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("watchdog.timeout_ms"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace fs::robot
