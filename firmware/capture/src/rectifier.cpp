@@ -190,9 +190,14 @@ Rectifier Rectifier::from_file(const std::string& path, double alpha) {
     r = pre_rectified(c, read_size(fsr, path, false), path);
   } else {
     const cv::Size size = read_size(fsr, path, true);
-    r = from_stereo_calibration(read_matrix(fsr, path, "K1", "M1"), read_matrix(fsr, path, "D1"),
-                                read_matrix(fsr, path, "K2", "M2"), read_matrix(fsr, path, "D2"),
-                                read_matrix(fsr, path, "R"), read_matrix(fsr, path, "T"), size, alpha, path);
+    // One statement per field: errors report the first missing field in file order.
+    const cv::Mat K1 = read_matrix(fsr, path, "K1", "M1");
+    const cv::Mat D1 = read_matrix(fsr, path, "D1");
+    const cv::Mat K2 = read_matrix(fsr, path, "K2", "M2");
+    const cv::Mat D2 = read_matrix(fsr, path, "D2");
+    const cv::Mat R = read_matrix(fsr, path, "R");
+    const cv::Mat T = read_matrix(fsr, path, "T");
+    r = from_stereo_calibration(K1, D1, K2, D2, R, T, size, alpha, path);
   }
   r.calib_.height_m = read_number(fsr, path, "height_m", false, 0.0);
   const double pitch_deg = read_number(fsr, path, "pitch_deg", false, 0.0);
