@@ -83,8 +83,10 @@ void run_capture(const CaptureOptions& o) {
   cam->stop();
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (rect.calib().valid()) write_rectified_calib((out / "calib.yml").string(), rect.calib(), size);
-  std::printf("captured %d pairs (%dx%d) from %s in %.2f s (%.1f pairs/s)%s -> %s\n", n, size.width, size.height,
-              cam->name().c_str(), s, s > 0 ? n / s : 0.0, rect.remaps() ? ", rectified" : "", o.out.c_str());
+  const capture::CaptureStats st = cam->stats();
+  std::printf("captured %d pairs (%dx%d) from %s in %.2f s (%.1f pairs/s, %llu unpaired frames dropped)%s -> %s\n", n,
+              size.width, size.height, cam->name().c_str(), s, s > 0 ? n / s : 0.0,
+              static_cast<unsigned long long>(st.dropped), rect.remaps() ? ", rectified" : "", o.out.c_str());
   if (n == 0) throw UserError("no pairs captured from '" + o.source + "'");
 }
 

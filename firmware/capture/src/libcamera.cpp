@@ -107,6 +107,9 @@ class LibcameraCamera final : public StereoCamera {
           fail("cannot queue a request on '" + sd.cam->id() + "' (error " + std::to_string(r) + ")");
     }
     frame_id_ = 0;
+    std::lock_guard<std::mutex> lock(mu_);
+    pairer_ = TimestampPairer<lc::Request*>(std::int64_t(p_.sync_tolerance_ms * 1e6), 3);
+    stats_ = {};
   }
 
   bool grab(StereoFrame& out) override {
@@ -135,6 +138,10 @@ class LibcameraCamera final : public StereoCamera {
     requeue(pair->left);
     requeue(pair->right);
     out.timestamp_ns = (pair->left_ns + pair->right_ns) / 2;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      stats_ = {frame_id_ + 1, pairer_.dropped_count(), pair->left_ns - pair->right_ns};
+    }
     out.frame_id = frame_id_++;
     out.source = spec_.text;
     return true;
@@ -169,6 +176,10 @@ class LibcameraCamera final : public StereoCamera {
   }
 
   std::string name() const override { return spec_.text; }
+  CaptureStats stats() const override {
+    std::lock_guard<std::mutex> lock(mu_);
+    return stats_;
+  }
 
  private:
   [[noreturn]] void fail(const std::string& why) { throw CaptureError("libcamera: " + why); }
@@ -273,8 +284,9 @@ class LibcameraCamera final : public StereoCamera {
   CameraParams p_;
   std::unique_ptr<lc::CameraManager> mgr_;
   Side sides_[2];
-  std::mutex mu_;
+  mutable std::mutex mu_;
   std::condition_variable cv_;
+  CaptureStats stats_;
   TimestampPairer<lc::Request*> pairer_;
   std::uint64_t frame_id_ = 0;
 };

@@ -66,6 +66,7 @@ class UvcCamera final : public StereoCamera {
       caps_.push_back(open_device(spec_.devices[1], p_.width, p_.height, p_.fps));
     }
     frame_id_ = 0;
+    stats_ = {};
   }
 
   bool grab(StereoFrame& out) override {
@@ -103,7 +104,10 @@ class UvcCamera final : public StereoCamera {
       out.left = std::move(pair->left);
       out.right = std::move(pair->right);
       out.timestamp_ns = (pair->left_ns + pair->right_ns) / 2;
+      stats_.dropped += pairer.dropped_count();
+      stats_.last_offset_ns = pair->left_ns - pair->right_ns;
     }
+    stats_.pairs = frame_id_ + 1;
     out.frame_id = frame_id_++;
     out.source = spec_.text;
     return true;
@@ -115,6 +119,7 @@ class UvcCamera final : public StereoCamera {
   }
 
   std::string name() const override { return spec_.text; }
+  CaptureStats stats() const override { return stats_; }
 
  private:
   [[noreturn]] void fail(const std::string& why) const { throw CaptureError("uvc: " + spec_.text + ": " + why); }
@@ -137,6 +142,7 @@ class UvcCamera final : public StereoCamera {
   CameraParams p_;
   std::vector<cv::VideoCapture> caps_;
   std::uint64_t frame_id_ = 0;
+  CaptureStats stats_;
 };
 
 }  // namespace

@@ -193,6 +193,11 @@ TEST(CaptureReplay, LeftRightFoldersInOrderThenEndOfStream) {
   EXPECT_FALSE(cam.grab(f));
   EXPECT_FALSE(cam.grab(f));
   EXPECT_TRUE(fc.sleeps.empty());  // rate 0: never sleeps
+  EXPECT_EQ(cam.stats().pairs, 4u);
+  cam.start();  // starts again from the first pair
+  ASSERT_TRUE(cam.grab(f));
+  EXPECT_EQ(f.frame_id, 0u);
+  EXPECT_EQ(mark_of(f.left), 10);
 }
 
 TEST(CaptureReplay, SuffixLayoutInNaturalOrderAndLoop) {

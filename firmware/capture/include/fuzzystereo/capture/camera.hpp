@@ -34,6 +34,13 @@ struct StereoFrame {
   std::string source;             // the source string the camera was opened with
 };
 
+// Health counters of a camera since start() (for telemetry / a status command).
+struct CaptureStats {
+  std::uint64_t pairs = 0;          // pairs delivered by grab()
+  std::uint64_t dropped = 0;        // frames dropped without a partner (two-device sources)
+  std::int64_t last_offset_ns = 0;  // t_left - t_right of the last pair (two-device sources)
+};
+
 // The camera-pair interface. Life cycle: start() -> grab() ... -> stop(); start() after stop()
 // starts again. Errors are thrown as CaptureError; grab() returns false only at the end of a finite
 // stream (replay without loop), never for a fault.
@@ -48,13 +55,14 @@ class StereoCamera {
   virtual void stop() = 0;
   // "replay:/data/run1", "uvc:/dev/video0", "libcamera:<id>,<id>" ...
   virtual std::string name() const = 0;
+  virtual CaptureStats stats() const { return {}; }
 };
 
 // [camera] section of the config (common/config/schema.toml documents each field and its range).
 struct CameraParams {
   int width = 640, height = 480;   // one camera image [px]
   double fps = 30.0;               // live sources [Hz]
-  double sync_tolerance_ms = 5.0;  // two-device pairing tolerance [ms]
+  double sync_tolerance_ms = 16.0; // two-device pairing tolerance [ms] (< half a frame period)
   int timeout_ms = 2000;           // live sources: grab() timeout [ms]
   std::string calibration;         // calibration file; empty = use frames as delivered
   double rectify_alpha = 0.0;      // cv::stereoRectify alpha

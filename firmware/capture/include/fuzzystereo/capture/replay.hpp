@@ -46,6 +46,7 @@ class ReplayCamera final : public StereoCamera {
   bool grab(StereoFrame& out) override;
   void stop() override;
   std::string name() const override { return source_; }
+  CaptureStats stats() const override { return {frame_id_, 0, 0}; }
   std::size_t size() const { return pairs_.size(); }
 
  private:
