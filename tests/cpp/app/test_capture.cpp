@@ -313,8 +313,11 @@ TEST(CaptureReplay, BadSequencesNameTheFile) {
 }
 
 TEST(CaptureReplay, KittiDatasetThroughTheAppHook) {
+  // Same rule as the other dataset tests: FUZZYSTEREO_DATASETS, else <repo>/../shared/datasets.
   const char* env = std::getenv("FUZZYSTEREO_DATASETS");
-  const stdfs::path root = env ? env : "/work/shared/datasets";
+  const stdfs::path root = (env != nullptr && *env != '\0')
+                               ? stdfs::path(env)
+                               : stdfs::path(__FILE__).parent_path() / ".." / ".." / ".." / ".." / "shared" / "datasets";
   const stdfs::path kitti = root / "kitti2015";
   if (!stdfs::is_directory(kitti)) GTEST_SKIP() << "KITTI 2015 not found at " << kitti << " (set FUZZYSTEREO_DATASETS)";
   const auto frames = fs::app::discover_dataset(kitti.string());
