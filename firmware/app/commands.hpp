@@ -13,5 +13,6 @@ void add_bench_command(CLI::App& app);  // cmd_bench.cpp
 void add_sim_command(CLI::App& app);    // cmd_sim.cpp
 void add_detect_command(CLI::App& app);       // cmd_detect.cpp
 void add_detect_eval_command(CLI::App& app);  // cmd_detect_eval.cpp
+void add_capture_command(CLI::App& app);  // cmd_capture.cpp
 
 }  // namespace fs::app
