@@ -266,6 +266,7 @@ void run_generate(const GenerateOptions& o) {
 
 void add_sim_command(CLI::App& app) {
   CLI::App* sim = app.add_subcommand("sim", "Synthetic stereo world: render a scene file, generate a data set");
+  add_sim_suite_command(*sim);
   sim->require_subcommand(1);
 
   auto ro = std::make_shared<RenderOptions>();

@@ -14,5 +14,7 @@ void add_sim_command(CLI::App& app);    // cmd_sim.cpp
 void add_detect_command(CLI::App& app);       // cmd_detect.cpp
 void add_detect_eval_command(CLI::App& app);  // cmd_detect_eval.cpp
 void add_capture_command(CLI::App& app);  // cmd_capture.cpp
+void add_run_command(CLI::App& app);      // cmd_run.cpp
+void add_sim_suite_command(CLI::App& sim);  // cmd_run.cpp, under `sim`
 
 }  // namespace fs::app

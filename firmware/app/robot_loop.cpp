@@ -1,0 +1,671 @@
+// The robot's main loop; see robot_loop.hpp and docs/robot.md ("The loop").
+#include "robot_loop.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <random>
+#include <thread>
+
+#include <opencv2/imgproc.hpp>
+
+#include "camera_source.hpp"
+#include "detect_config.hpp"
+#include "detect_io.hpp"
+#include "fuzzystereo/capture/rectifier.hpp"
+#include "fuzzystereo/detect.hpp"
+#include "fuzzystereo/matcher.hpp"
+#include "fuzzystereo/robot/clock.hpp"
+#include "fuzzystereo/robot/failsafe.hpp"
+#include "fuzzystereo/robot/motors.hpp"
+#include "fuzzystereo/robot/nav_sim.hpp"
+#include "fuzzystereo/robot/odometry.hpp"
+#include "fuzzystereo/robot/params.hpp"
+#include "fuzzystereo/robot/planner.hpp"
+#include "fuzzystereo/robot/tracker.hpp"
+#include "fuzzystereo/sim/world.hpp"
+#include "io.hpp"
+
+namespace fs::app {
+
+namespace stdfs = std::filesystem;
+using json = nlohmann::json;
+using robot::BodyTwist;
+using robot::CircleObstacle;
+using robot::Pose2D;
+using robot::Vec2;
+
+namespace {
+
+constexpr std::int64_t kSubStepNs = 10'000'000;  // sim integration / watchdog poll step: 10 ms
+
+double wall_ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// BT.601 luma in integers, the same weights OpenCV's cvtColor uses (R 0.299, G 0.587, B 0.114).
+ImageU8 rgb_to_gray(const ImageRgb8& rgb) {
+  ImageU8 g(rgb.width, rgb.height);
+  for (std::size_t i = 0; i < rgb.data.size(); ++i) {
+    const Rgb8 c = rgb.data[i];
+    g.data[i] = static_cast<std::uint8_t>((c.r * 4899 + c.g * 9617 + c.b * 1868 + 8192) >> 14);
+  }
+  return g;
+}
+
+cv::Mat rgb_to_bgr_mat(const ImageRgb8& rgb) {
+  cv::Mat m(rgb.height, rgb.width, CV_8UC3);
+  for (int y = 0; y < rgb.height; ++y) {
+    auto* out = m.ptr<cv::Vec3b>(y);
+    const Rgb8* in = rgb.row(y);
+    for (int x = 0; x < rgb.width; ++x) out[x] = cv::Vec3b(in[x].b, in[x].g, in[x].r);
+  }
+  return m;
+}
+
+StageStat stat_of(std::vector<double> v) {
+  StageStat s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  s.median = v[v.size() / 2];
+  s.p90 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.9 * static_cast<double>(v.size())))];
+  s.max = v.back();
+  return s;
+}
+
+// The detected obstacles as ground-plane circles in the robot frame (x forward, y left) and then
+// in the world frame. A detection wider than `chunk_m` (a wall, a row of posts) becomes a chain of
+// circles, one per column strip of about chunk_m, each at the median disparity of its own pixels:
+// a single circle around a wall would swallow the gaps the robot must drive through.
+std::vector<robot::ObstacleMeasurement> measurements_of(const DetectResult& det, const ImageI16& disp,
+                                                       const StereoCalib& calib, const Pose2D& pose,
+                                                       double chunk_m) {
+  std::vector<robot::ObstacleMeasurement> out;
+  const double cp = std::cos(calib.pitch_rad), sp = std::sin(calib.pitch_rad);
+  const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
+  std::vector<std::int16_t> vals;
+  for (const Obstacle& o : det.obstacles) {
+    const double z0 = o.distance_m;
+    const int strip_px = std::max(4, static_cast<int>(std::lround(chunk_m * calib.focal_px / std::max(z0, 0.05))));
+    for (int x0 = o.x0; x0 <= o.x1; x0 += strip_px) {
+      const int x1 = std::min(o.x1, x0 + strip_px - 1);
+      vals.clear();
+      long sum_v = 0;
+      for (int y = o.y0; y <= o.y1; ++y) {
+        const std::int32_t* lab = det.obstacle_labels.row(y);
+        const std::int16_t* d = disp.row(y);
+        for (int x = x0; x <= x1; ++x)
+          if (lab[x] == o.id + 1 && d[x] > 0) {
+            vals.push_back(d[x]);
+            sum_v += y;
+          }
+      }
+      if (vals.size() < 8) continue;
+      const std::size_t n = vals.size();
+      std::nth_element(vals.begin(), vals.begin() + static_cast<std::ptrdiff_t>(n / 2), vals.end());
+      const double d_px = vals[n / 2] / static_cast<double>(kDispScale);
+      const double Z = calib.depth_of(d_px);
+      const double u = 0.5 * (x0 + x1);
+      const double v = static_cast<double>(sum_v) / static_cast<double>(n);
+      const double X = (u - calib.cx) * Z / calib.focal_px;
+      const double Y = (v - calib.cy) * Z / calib.focal_px;
+      // Camera -> robot frame (docs/simulator.md): forward = Z cos p - Y sin p, left = -X.
+      const double half_w = 0.5 * (x1 - x0 + 1) * Z / calib.focal_px;
+      const double fwd = Z * cp - Y * sp + half_w;  // the visible surface is the front: centre behind it
+      const double left = -X;
+      robot::ObstacleMeasurement m;
+      m.p = {pose.x + cy * fwd - sy * left, pose.y + sy * fwd + cy * left};
+      m.radius_m = half_w;
+      m.distance_class = static_cast<int>(o.cls);
+      // Depth std grows with Z^2 (0.25 px disparity error); lateral error is small.
+      m.sigma_m = std::max(0.03, 0.25 * Z * Z / (calib.focal_px * calib.baseline_m));
+      out.push_back(m);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+// ---- JSON ---------------------------------------------------------------------------------------
+
+json LoopResult::to_json() const {
+  json j{{"status", status},
+         {"reached", reached},
+         {"collided", collided},
+         {"safe_stop", safe_stop},
+         {"timed_out", timed_out},
+         {"frames", frames},
+         {"time_s", time_s},
+         {"path_m", path_m},
+         {"shortest_m", shortest_m},
+         {"path_ratio", (shortest_m > 0 && std::isfinite(shortest_m)) ? path_m / shortest_m : 0.0},
+         {"min_clearance_m", min_clearance_m},
+         {"front_stops", front_stops},
+         {"blocked_frames", blocked_frames},
+         {"watchdog_trips", watchdog_trips},
+         {"fps_wall", fps_wall}};
+  if (watchdog_stop_after_last_plan_ms >= 0) {
+    j["watchdog_stop_after_last_plan_ms"] = watchdog_stop_after_last_plan_ms;
+    j["watchdog_stop_after_deadline_ms"] = watchdog_stop_after_deadline_ms;
+  }
+  if (watchdog_stop_wall_ms >= 0) j["watchdog_stop_wall_ms"] = watchdog_stop_wall_ms;
+  return j;
+}
+
+// ---- the loop -----------------------------------------------------------------------------------
+
+struct RobotLoop::Impl {
+  Config cfg;
+  LoopOptions opt;
+  robot::RobotParams rp;
+  robot::TrackerParams tp;
+  robot::PlannerParams pp;
+  robot::WatchdogParams wp;
+  robot::MotorParams mp;
+
+  // Camera side: the simulator, or a capture backend + rectifier.
+  std::unique_ptr<sim::World> world;
+  std::unique_ptr<capture::StereoCamera> camera;
+  capture::Rectifier rectifier;
+  StereoCalib calib;
+
+  std::unique_ptr<robot::MotorDriver> motors;
+  robot::SimMotors* sim_motors = nullptr;  // == motors.get() for the sim backend
+
+  Impl(const Config& c, LoopOptions o) : cfg(c), opt(std::move(o)) {
+    rp = robot::robot_params_from(cfg.values);
+    tp = robot::tracker_params_from(cfg.values);
+    pp = robot::planner_params_from(cfg.values);
+    wp = robot::watchdog_params_from(cfg.values);
+    mp = robot::motor_params_from(cfg.values);
+  }
+};
+
+RobotLoop::RobotLoop(const Config& cfg, LoopOptions opt) : impl_(std::make_unique<Impl>(cfg, std::move(opt))) {}
+RobotLoop::~RobotLoop() {
+  if (impl_ && impl_->motors) impl_->motors->stop();
+}
+
+LoopResult RobotLoop::run() {
+  Impl& I = *impl_;
+  const LoopOptions& opt = I.opt;
+  LoopResult res;
+
+  // ---- source ----
+  const bool is_sim = opt.source == "sim" || opt.source.rfind("sim:", 0) == 0;
+  Pose2D start{};
+  Vec2 goal{};
+  bool have_goal = false;
+  double time_limit_s = opt.time_limit_s;
+  if (is_sim) {
+    const std::string path = opt.source.size() > 4 ? opt.source.substr(4) : std::string();
+    if (opt.scene) {
+      I.world = std::make_unique<sim::World>(*opt.scene);
+    } else {
+      if (path.empty()) throw UserError("--source sim:SCENE needs a scene file (e.g. sim:common/sim/scenes/mission.toml)");
+      I.world = std::make_unique<sim::World>(sim::load_scene(path));
+    }
+    I.calib = I.world->calib();
+    const sim::Pose2 sp = I.world->scene_pose();
+    start = {sp.x_m, sp.y_m, sp.yaw_rad};
+    if (const auto& m = I.world->scene().mission) {
+      goal = {m->goal_x_m, m->goal_y_m};
+      have_goal = true;
+      if (time_limit_s <= 0) time_limit_s = m->time_limit_s;
+    }
+  } else {
+    const capture::CameraParams cp = capture::camera_params_from(I.cfg.values);
+    I.camera = open_stereo_source(opt.source, cp);
+    if (!cp.calibration.empty()) {
+      I.rectifier = capture::Rectifier::from_file(cp.calibration, cp.rectify_alpha);
+      I.calib = I.rectifier.calib();
+    }
+    I.camera->start();
+  }
+  if (opt.goal) {
+    goal = *opt.goal;
+    have_goal = true;
+  }
+  if (!have_goal) throw UserError("no goal: give --goal X,Y or a [mission] in the scene file");
+
+  // ---- motors (start stopped) ----
+  if (opt.motors == "sim") {
+    auto sm = std::make_unique<robot::SimMotors>(I.rp, start, 0);
+    I.sim_motors = sm.get();
+    I.motors = std::move(sm);
+  } else if (opt.motors == "gpiod") {
+    I.motors = robot::open_gpiod_motors(I.mp);
+  } else {
+    throw UserError("--motors '" + opt.motors + "' is not valid: one of sim, gpiod");
+  }
+  I.motors->stop();
+  robot::install_stop_signal_handlers();
+
+  // ---- pipeline ----
+  const Matcher matcher(I.cfg.matcher, load_fis_definition(""));
+  const Detector detector(detect_params_from(I.cfg.values));
+  robot::MultiTracker tracker(I.tp);
+  const robot::Planner planner(I.pp, I.rp);
+  robot::DiffDriveMixer mixer(I.rp);
+  robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
+
+  // Frame period: the planner's control period (the dynamic window assumes it).
+  const std::int64_t period_ns = robot::s_to_ns(I.pp.control_period_s);
+  const std::int64_t latency_ns =
+      std::min(period_ns - kSubStepNs, robot::s_to_ns(std::max(0.0, opt.sim_latency_ms) * 1e-3));
+  const bool sim_clock = is_sim && !opt.realtime;
+  robot::SimClock sclock(0);
+  robot::WallClock wclock;
+  robot::Clock& clock = sim_clock ? static_cast<robot::Clock&>(sclock) : static_cast<robot::Clock&>(wclock);
+  const std::int64_t t0 = clock.now_ns();
+
+  // Watchdog: stop the motors when no plan arrives within wp.timeout_ns.
+  std::int64_t last_feed_ns = t0, stop_cmd_ns = -1;
+  auto wall_last_feed = std::chrono::steady_clock::now();
+  std::unique_ptr<robot::SimWatchdog> sim_wd;
+  std::unique_ptr<robot::WallWatchdog> wall_wd;
+  std::atomic<double> wall_stop_ms{-1.0};
+  if (sim_clock) {
+    sim_wd = std::make_unique<robot::SimWatchdog>(I.wp.timeout_ns, [&] {
+      I.motors->stop();
+      stop_cmd_ns = sclock.now_ns();
+    });
+  } else {
+    wall_wd = std::make_unique<robot::WallWatchdog>(I.wp.timeout_ns, [&] {
+      I.motors->stop();
+      wall_stop_ms = wall_ms_since(wall_last_feed);
+    });
+  }
+  auto feed = [&](std::int64_t now) {
+    last_feed_ns = now;
+    if (sim_wd) sim_wd->feed(now);
+    if (wall_wd) {
+      wall_last_feed = std::chrono::steady_clock::now();
+      wall_wd->feed();
+    }
+  };
+  feed(t0);
+
+  // ---- record ----
+  std::ofstream frames_log;
+  if (!opt.record_dir.empty()) {
+    stdfs::create_directories(stdfs::path(opt.record_dir) / "frames");
+    frames_log.open(stdfs::path(opt.record_dir) / "frames.jsonl");
+    if (!frames_log) throw UserError("cannot write " + opt.record_dir + "/frames.jsonl");
+  }
+
+  // Static obstacles for the shortest-path reference (sim).
+  if (I.world) {
+    std::vector<CircleObstacle> statics;
+    for (const auto& f : I.world->obstacles_at(0.0)) {
+      const auto& spec = I.world->scene().obstacles;
+      const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& s) { return s.id == f.id; });
+      if (it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0)) continue;
+      const double r = f.circle ? f.radius_m : std::hypot(f.half_length_m, f.half_width_m);
+      statics.push_back({{f.x_m, f.y_m}, r, {}});
+    }
+    res.shortest_m = robot::shortest_path_length(statics, start.pos(), goal, I.rp.radius_m, 0.05);
+    res.min_clearance_m = std::numeric_limits<double>::infinity();
+  }
+
+  std::map<std::string, std::vector<double>> stage_ms;
+  Pose2D true_pose = start, last_true = start;
+  int blocked_run = 0;
+  const int blocked_frames_to_stop = std::max(3, static_cast<int>(std::lround(3.0 / I.pp.control_period_s)));
+  const auto wall_start = std::chrono::steady_clock::now();
+  double processing_ms = 0;
+  std::string end_status;
+  BodyTwist applied{};
+
+  for (int frame = 0;; ++frame) {
+    if (opt.max_frames > 0 && frame >= opt.max_frames) {
+      end_status = "frames";
+      break;
+    }
+    if (robot::stop_requested()) {
+      end_status = "interrupted";
+      break;
+    }
+    const std::int64_t t_frame = clock.now_ns();
+    const double t_s = robot::ns_to_s(t_frame - t0);
+    if (time_limit_s > 0 && t_s >= time_limit_s) {
+      end_status = "timeout";
+      res.timed_out = true;
+      break;
+    }
+    const auto w0 = std::chrono::steady_clock::now();
+
+    // ---- stall injection (watchdog test): the pipeline produces nothing for stall_ms ----
+    if (frame == opt.stall_frame && opt.stall_ms > 0) {
+      const std::int64_t stall_ns = robot::s_to_ns(opt.stall_ms * 1e-3);
+      if (sim_clock) {
+        const std::int64_t end = t_frame + stall_ns;
+        for (std::int64_t t = t_frame + kSubStepNs; t <= end; t += kSubStepNs) {
+          sclock.set(t);
+          if (I.sim_motors) I.sim_motors->advance_to(t - t0);
+          sim_wd->poll(t);
+        }
+        if (stop_cmd_ns >= 0) {
+          res.watchdog_stop_after_last_plan_ms = robot::ns_to_s(stop_cmd_ns - last_feed_ns) * 1e3;
+          // The frame after the last plan was due one period after the previous frame's capture.
+          const std::int64_t deadline = (last_feed_ns - latency_ns) + period_ns;
+          res.watchdog_stop_after_deadline_ms = robot::ns_to_s(stop_cmd_ns - deadline) * 1e3;
+        }
+      } else {
+        std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
+        res.watchdog_stop_wall_ms = wall_stop_ms.load();
+      }
+      if (I.sim_motors) true_pose = I.sim_motors->pose();
+      continue;
+    }
+
+    // ---- capture ----
+    ImageRgb8 rgb_left;
+    ImageU8 gl, gr;
+    cv::Mat left_bgr;
+    sim::RenderResult rr;
+    {
+      const auto s0 = std::chrono::steady_clock::now();
+      if (I.world) {
+        rr = I.world->render(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, t_s, I.cfg.matcher.runtime.threads);
+        gl = rgb_to_gray(rr.left);
+        gr = rgb_to_gray(rr.right);
+        rgb_left = std::move(rr.left);
+        if (!opt.record_dir.empty()) left_bgr = rgb_to_bgr_mat(rgb_left);
+      } else {
+        capture::StereoFrame f;
+        if (!I.camera->grab(f)) {
+          end_status = "end_of_stream";
+          break;
+        }
+        if (I.rectifier.remaps()) I.rectifier.apply(f);
+        if (!I.calib.valid())
+          throw UserError("source " + opt.source + " has no calibration: set [camera] calibration in the config "
+                          "(docs/capture.md)");
+        left_bgr = f.left;
+        rgb_left = f.left.channels() == 3 ? to_core_rgb(f.left) : ImageRgb8{};
+        gl = to_core_gray(f.left);
+        gr = to_core_gray(f.right);
+      }
+      stage_ms["capture"].push_back(wall_ms_since(s0));
+    }
+
+    // ---- match + refine ----
+    auto s1 = std::chrono::steady_clock::now();
+    const MatchResult mr = matcher.match(gl, gr);
+    stage_ms["match"].push_back(wall_ms_since(s1));
+
+    // ---- detect ----
+    s1 = std::chrono::steady_clock::now();
+    const DetectResult det = detector.detect(mr.disp_final, rgb_left, I.calib);
+    stage_ms["detect"].push_back(wall_ms_since(s1));
+
+    // ---- track ----
+    s1 = std::chrono::steady_clock::now();
+    const Pose2D pose = odom.pose();
+    const auto meas = measurements_of(det, mr.disp_final, I.calib, pose, 0.3);
+    const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
+    const double max_range = I.calib.depth_of(std::max(1.0, detect_params_from(I.cfg.values).kmeans_min_disparity_px));
+    const auto visible = [&](Vec2 p) {
+      const Vec2 d = p - pose.pos();
+      const double r = robot::norm(d);
+      if (r < 0.3 || r > max_range) return false;
+      return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
+    };
+    tracker.step(t_frame - t0, meas, visible);
+    stage_ms["track"].push_back(wall_ms_since(s1));
+
+    // ---- plan ----
+    s1 = std::chrono::steady_clock::now();
+    std::vector<CircleObstacle> obstacles = tracker.obstacles(true, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
+    std::vector<CircleObstacle> raw;
+    for (const auto& m : meas) raw.push_back({m.p, m.radius_m, {}});
+    const robot::PlanOutput plan = planner.plan(pose, mixer.last(), goal, obstacles);
+    const bool ahead = robot::obstacle_in_front(pose, raw, I.rp.radius_m, I.rp.stop_distance_m) ||
+                       robot::obstacle_in_front(pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
+    BodyTwist want = plan.cmd;
+    if (plan.status == robot::PlanStatus::kReached || plan.status == robot::PlanStatus::kBlocked) want = {};
+    want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
+    if (ahead) ++res.front_stops;
+    const robot::WheelCommand wc = mixer.mix(want, I.pp.control_period_s);
+    stage_ms["plan"].push_back(wall_ms_since(s1));
+    const double frame_ms = wall_ms_since(w0);
+    stage_ms["total"].push_back(frame_ms);
+    processing_ms += frame_ms;
+
+    if (plan.status == robot::PlanStatus::kBlocked) {
+      ++res.blocked_frames;
+      ++blocked_run;
+    } else {
+      blocked_run = 0;
+    }
+
+    // ---- actuate and advance ----
+    if (sim_clock) {
+      // The command reaches the motors after the processing latency; meanwhile the previous one runs.
+      const std::int64_t t_apply = t_frame + latency_ns, t_next = t_frame + period_ns;
+      bool applied_now = false;
+      for (std::int64_t t = t_frame + kSubStepNs; t <= t_next; t += kSubStepNs) {
+        if (!applied_now && t >= t_apply) {
+          I.motors->set(wc.left, wc.right);
+          applied = wc.twist;
+          feed(t);
+          applied_now = true;
+        }
+        sclock.set(t);
+        I.sim_motors->advance_to(t - t0);
+        sim_wd->poll(t);
+        const double dt = robot::ns_to_s(kSubStepNs);
+        odom.update(I.sim_motors->wheel_left_mps(), I.sim_motors->wheel_right_mps(), dt);
+        true_pose = I.sim_motors->pose();
+        res.path_m += std::hypot(true_pose.x - last_true.x, true_pose.y - last_true.y);
+        last_true = true_pose;
+        const double ts = robot::ns_to_s(t - t0);
+        const double clear = I.world->clearance(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, ts) - I.rp.radius_m;
+        res.min_clearance_m = std::min(res.min_clearance_m, clear);
+        if (clear < 0) res.collided = true;
+      }
+    } else {
+      I.motors->set(wc.left, wc.right);
+      applied = wc.twist;
+      feed(clock.now_ns());
+      if (I.sim_motors) {
+        const std::int64_t now = clock.now_ns();
+        I.sim_motors->advance_to(now - t0);
+        true_pose = I.sim_motors->pose();
+      }
+      // Commanded (gpiod: no encoders) or simulated wheel speeds integrate the pose.
+      double vl = 0, vr = 0;
+      robot::wheels_from_twist(applied, I.rp.wheel_base_m, vl, vr);
+      odom.update(vl, vr, robot::ns_to_s(period_ns));
+      if (opt.realtime || !is_sim) clock.sleep_until(t_frame + period_ns);
+      if (I.world) {
+        const double clear =
+            I.world->clearance(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, t_s) - I.rp.radius_m;
+        res.min_clearance_m = std::min(res.min_clearance_m, clear);
+        if (clear < 0) res.collided = true;
+        res.path_m += std::hypot(true_pose.x - last_true.x, true_pose.y - last_true.y);
+        last_true = true_pose;
+      }
+    }
+    ++res.frames;
+
+    // ---- log ----
+    json fj{{"frame", frame},
+            {"t", t_s},
+            {"pose", {pose.x, pose.y, pose.yaw}},
+            {"cmd", {applied.v, applied.omega}},
+            {"wheels", {wc.left, wc.right}},
+            {"status", robot::to_string(plan.status)},
+            {"front_stop", ahead}};
+    if (I.world) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
+    json dets = json::array();
+    for (const Obstacle& o : det.obstacles)
+      dets.push_back({{"box", {o.x0, o.y0, o.x1, o.y1}},
+                      {"distance_m", o.distance_m},
+                      {"lateral_m", o.lateral_m},
+                      {"class", obstacle_class_name(o.cls)},
+                      {"pixels", o.pixel_count}});
+    fj["detections"] = std::move(dets);
+    json trs = json::array();
+    for (const auto& tr : tracker.tracks())
+      trs.push_back({{"id", tr.id},
+                     {"p", {tr.pos().x, tr.pos().y}},
+                     {"v", {tr.vel().x, tr.vel().y}},
+                     {"r", tr.radius_m},
+                     {"confirmed", tr.confirmed}});
+    fj["tracks"] = std::move(trs);
+    json sm;
+    for (const auto& [k, v] : stage_ms) sm[k] = v.back();
+    fj["stage_ms"] = sm;
+    if (!opt.record_dir.empty()) {
+      if (opt.snapshot_every > 0 && frame % opt.snapshot_every == 0) {
+        char stem[32];
+        std::snprintf(stem, sizeof stem, "%06d", frame);
+        const stdfs::path base = stdfs::path(opt.record_dir) / "frames";
+        write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
+        const cv::Mat dispf = disp_q4_to_float(mr.disp_final);
+        write_image((base / (std::string(stem) + "_disp.png")).string(),
+                    colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
+        fj["snapshot"] = std::string("frames/") + stem;
+      }
+      frames_log << fj.dump() << '\n';
+      frames_log.flush();
+    }
+    if (opt.on_frame) opt.on_frame(fj);
+    if (!opt.quiet)
+      std::fprintf(stderr, "frame %4d t=%6.2fs pose=(%5.2f,%5.2f,%5.1fdeg) v=%.2f w=%.2f obst=%zu tracks=%zu %s%s %.0fms\n",
+                   frame, t_s, pose.x, pose.y, pose.yaw * 180.0 / M_PI, applied.v, applied.omega,
+                   det.obstacles.size(), tracker.tracks().size(), robot::to_string(plan.status),
+                   ahead ? " STOP" : "", frame_ms);
+
+    // ---- end conditions ----
+    if (res.collided) {
+      end_status = "collision";
+      break;
+    }
+    const Pose2D judge = I.world ? true_pose : odom.pose();
+    if (robot::norm(judge.pos() - goal) <= I.rp.goal_tolerance_m) {
+      res.reached = true;
+      end_status = "reached";
+      break;
+    }
+    if (blocked_run >= blocked_frames_to_stop) {
+      const double speed = I.sim_motors ? std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps())
+                                        : std::fabs(applied.v) + std::fabs(applied.omega);
+      if (speed < 1e-3) {
+        res.safe_stop = !res.collided;
+        end_status = "blocked_stop";
+        break;
+      }
+    }
+  }
+  I.motors->stop();
+  if (I.camera) I.camera->stop();
+  res.status = end_status;
+  res.time_s = robot::ns_to_s(clock.now_ns() - t0);
+  if (!std::isfinite(res.min_clearance_m)) res.min_clearance_m = 0;
+  res.watchdog_trips = sim_wd ? sim_wd->expiries() : (wall_wd ? wall_wd->expiries() : 0);
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  res.fps_wall = processing_ms > 0 ? 1000.0 * res.frames / processing_ms : 0.0;
+  (void)wall_s;
+  for (const char* k : {"capture", "match", "detect", "track", "plan", "total"})
+    if (stage_ms.count(k)) res.stages.emplace_back(k, stat_of(stage_ms[k]));
+
+  if (!opt.record_dir.empty()) {
+    json run{{"version", 1}, {"source", opt.source}, {"start", {start.x, start.y, start.yaw}},
+             {"goal", {goal.x, goal.y}}, {"robot_radius_m", I.rp.radius_m}, {"result", res.to_json()}};
+    if (I.world) {
+      run["scenario"] = I.world->scene().source;
+      json obs = json::array();
+      for (const auto& s : I.world->scene().obstacles) {
+        json o{{"id", s.id}, {"x", s.x_m}, {"y", s.y_m}, {"yaw", s.yaw_deg * M_PI / 180.0}, {"vx", s.vx_mps}, {"vy", s.vy_mps}};
+        if (s.shape == sim::Shape::Box) {
+          o["shape"] = "box";
+          o["length"] = s.length_m;
+          o["width"] = s.width_m;
+        } else {
+          o["shape"] = "circle";
+          o["radius"] = s.radius_m;
+        }
+        obs.push_back(o);
+      }
+      run["world"] = {{"obstacles", obs}};
+    }
+    json tm;
+    for (const auto& [k, s] : res.stages) tm[k] = {{"median", s.median}, {"p90", s.p90}, {"max", s.max}};
+    run["timing_ms"] = tm;
+    run["calib"] = {{"focal_px", I.calib.focal_px}, {"baseline_m", I.calib.baseline_m}, {"cx", I.calib.cx}, {"cy", I.calib.cy}};
+    std::ofstream(stdfs::path(opt.record_dir) / "run.json") << run.dump(2) << '\n';
+    std::ofstream(stdfs::path(opt.record_dir) / "config.toml") << config_to_toml(I.cfg.values);
+  }
+  return res;
+}
+
+// ---- suite scenarios ----------------------------------------------------------------------------
+
+sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const Config& cfg, std::string* features) {
+  const robot::RobotParams rp = robot::robot_params_from(cfg.values);
+  const std::uint64_t s = seed * 1000003ull + static_cast<std::uint64_t>(index);
+  const robot::NavScenario nav = robot::make_nav_scenario(s, blocked, rp);
+  if (features) *features = nav.features;
+  std::mt19937_64 rng(s ^ 0x5DEECE66Dull);
+  auto uni = [&](double a, double b) { return a + (b - a) * static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  auto pick = [&](int n) { return static_cast<int>(rng() % static_cast<std::uint64_t>(n)); };
+  sim::Scene sc;
+  sc.seed = s;
+  sc.type = blocked ? "blocked" : (nav.features.empty() ? "open" : nav.features);
+  while (!sc.type.empty() && sc.type.back() == ' ') sc.type.pop_back();
+  // The robot's camera: 320 x 180, 74 deg horizontal field of view, 12 cm baseline.
+  sc.camera.width = 320;
+  sc.camera.height = 180;
+  sc.camera.focal_px = 210.0;
+  sc.camera.cx = 159.5;
+  sc.camera.cy = 89.5;
+  sc.camera.baseline_m = 0.12;
+  sc.camera.height_m = 0.40;
+  sc.camera.pitch_deg = 5.0;
+  sc.robot.x_m = nav.start.x;
+  sc.robot.y_m = nav.start.y;
+  sc.robot.yaw_deg = nav.start.yaw * 180.0 / M_PI;
+  sc.robot.radius_m = rp.radius_m;
+  sim::MissionSpec m;
+  m.goal_x_m = nav.goal.x;
+  m.goal_y_m = nav.goal.y;
+  const double straight = robot::norm(nav.goal - nav.start.pos());
+  m.time_limit_s = blocked ? 30.0 : 3.0 * straight / rp.max_speed_mps + 20.0;
+  sc.mission = m;
+  sc.sky.kind = static_cast<sim::SkyKind>(pick(3));
+  sc.light.sun_azimuth_deg = uni(0, 360);
+  sc.light.sun_elevation_deg = uni(20, 70);
+  sc.light.ambient = uni(0.3, 0.5);
+  sc.ground.texture = static_cast<sim::GroundTexture>(pick(4));
+  sc.render.supersample = 2;
+  int id = 0;
+  for (const auto& o : nav.obstacles) {
+    sim::ObstacleSpec ob;
+    ob.id = id++;
+    ob.shape = sim::Shape::Cylinder;
+    ob.x_m = o.c.x;
+    ob.y_m = o.c.y;
+    ob.radius_m = o.r;
+    ob.height_m = uni(0.6, 1.6);
+    ob.texture = static_cast<sim::Texture>(pick(6));
+    ob.color = {static_cast<int>(uni(60, 230)), static_cast<int>(uni(60, 230)), static_cast<int>(uni(60, 230))};
+    ob.vx_mps = o.vel.x;
+    ob.vy_mps = o.vel.y;
+    sc.obstacles.push_back(ob);
+  }
+  sc.radiometric.left.noise_sigma = 1.0;
+  sc.radiometric.right.noise_sigma = 1.0;
+  sc.source = "suite-" + std::to_string(seed) + "-" + std::to_string(index) + (blocked ? "-blocked" : "");
+  return sc;
+}
+
+}  // namespace fs::app

@@ -1,0 +1,83 @@
+// The robot's main loop (issue 5): capture -> rectify -> match -> refine -> detect -> track -> plan
+// -> motors, with the failsafes, per-stage timings, a decision log and an optional run record.
+//
+// One RobotLoop serves `fuzzystereo run` (any camera source, sim or gpiod motors) and
+// `fuzzystereo sim suite` (closed loop in the synthetic world, on a simulated clock so it runs
+// faster than real time). The loop is single-threaded and deterministic on the simulated clock:
+// the same scene and config give the same run.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "config.hpp"
+#include "fuzzystereo/robot/geometry.hpp"
+#include "fuzzystereo/sim/scene.hpp"
+
+namespace fs::app {
+
+struct LoopOptions {
+  std::string source;            // "sim:SCENE" | "replay:DIR" | "uvc:DEV" | "libcamera[...]"
+  std::optional<sim::Scene> scene;  // sim: this scene instead of the file named in `source`
+  std::string motors = "sim";    // "sim" | "gpiod"
+  std::optional<robot::Vec2> goal;  // overrides the scene's [mission] goal
+  std::string record_dir;        // empty = no record
+  int snapshot_every = 10;       // record: annotated frame every N frames (0 = none)
+  int max_frames = 0;            // 0 = until goal / time limit / end of stream / SIGINT
+  double time_limit_s = 0;       // 0 = the scene's mission time limit (sim) or none
+  bool realtime = false;         // sim: pace frames on the wall clock
+  // Simulated processing latency: the command computed from the frame captured at t reaches the
+  // motors at t + latency (sim only) [ms]. Models the Pi's pipeline time.
+  double sim_latency_ms = 100.0;
+  // Fault injection (watchdog test): at frame `stall_frame` the pipeline produces nothing for
+  // `stall_ms` (sim: simulated time; other sources: a real sleep).
+  int stall_frame = -1;
+  double stall_ms = 0;
+  bool quiet = false;            // no per-frame line on stderr
+  std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
+};
+
+struct StageStat {
+  double median = 0, p90 = 0, max = 0;
+};
+
+struct LoopResult {
+  std::string status;       // reached | collision | blocked_stop | timeout | end_of_stream | interrupted | frames
+  bool reached = false, collided = false, safe_stop = false, timed_out = false;
+  int frames = 0;
+  double time_s = 0;        // simulated (sim) or wall time of the run [s]
+  double path_m = 0;        // distance driven (true pose in sim) [m]
+  double shortest_m = 0;    // shortest collision-free path among the static obstacles (sim) [m]
+  double min_clearance_m = 0;  // smallest robot-surface gap to any obstacle (sim) [m]
+  int front_stops = 0;      // frames where the stop-distance failsafe held the robot
+  int blocked_frames = 0;   // frames where the planner found no path
+  int watchdog_trips = 0;
+  double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan
+  double watchdog_stop_after_deadline_ms = -1;   // ... after the missed frame deadline
+  double watchdog_stop_wall_ms = -1;             // ... wall-clock watchdog thread (real sleep)
+  double fps_wall = 0;      // frames per wall-clock second of processing
+  std::vector<std::pair<std::string, StageStat>> stages;
+  nlohmann::json to_json() const;
+};
+
+class RobotLoop {
+ public:
+  RobotLoop(const Config& cfg, LoopOptions opt);
+  ~RobotLoop();
+  LoopResult run();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// A closed-loop scenario of the simulator suite as a scene (obstacles, start, goal, mission time
+// limit). `blocked` scenarios have no collision-free path to the goal.
+sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const Config& cfg, std::string* features);
+
+}  // namespace fs::app
