@@ -187,6 +187,23 @@ _engine_option = click.option(
 )
 
 
+@reference_group.command("detect")
+@click.option("--dump", "dump_dir", type=_path, required=True, help="A detect dump (fuzzystereo detect --dump: OUT or OUT/dump).")
+@click.option("--out", type=_path, required=True, help="Output directory for the reference's masks and obstacles.json.")
+def reference_detect(dump_dir: Path, out: Path) -> None:
+    """Float64 obstacle detection (eq. 16-25) on a firmware detect dump's inputs and config."""
+    from .detect_compare import find_detect_dump, run_reference_on_dump, write_reference_outputs
+
+    d = find_detect_dump(dump_dir)
+    if d is None:
+        raise FatalError(f"no detect dump in {dump_dir} (run `fuzzystereo detect ... --dump`)")
+    _, r = run_reference_on_dump(d)
+    write_reference_outputs(out, r)
+    console.print(f"reference: road {'found' if r.road_found else 'not found'}, {len(r.obstacles)} obstacles; wrote {out}")
+    for o in r.obstacles:
+        console.print(f"  #{o.id} {o.cls:4s} Z {o.distance_m:.2f} m  box {o.box}  {o.pixel_count} px")
+
+
 @reference_group.command("match")
 @click.option("--left", "left_path", type=_path, required=True, help="Left image.")
 @click.option("--right", "right_path", type=_path, required=True, help="Right image.")
@@ -378,6 +395,11 @@ def compare_cmd(run_dir: Path | None, dataset_dir: Path | None, tolerances: Path
         _compare_dataset(dataset_dir, tolerances, report, jobs, limit, config_file, binary, fis_file, engine)
         return
 
+    from .detect_compare import find_detect_dump
+
+    if find_detect_dump(run_dir) is not None:  # a `fuzzystereo detect --dump` run
+        _compare_detect(run_dir, tolerances)
+        return
     with console.status("running the reference on the dump ..."):
         c = compare_run(run_dir, tolerances, fis_file, engine=engine, own_segmentation=own_segmentation)
     table = Table(title=f"firmware vs reference — {c.dump.path}")
@@ -403,6 +425,28 @@ def compare_cmd(run_dir: Path | None, dataset_dir: Path | None, tolerances: Path
         from .report import write_report
 
         console.print(f"wrote {write_report(c, report)}")
+    if failing:
+        raise CheckFailed("comparison outside tolerance: " + ", ".join(
+            f"{m.name} = {m.value:.4g} (needs {t.text()})" for m, t in c.failures()))
+    console.print("all checked metrics within tolerance")
+
+
+def _compare_detect(run_dir: Path, tolerances: Path | None) -> None:
+    from .detect_compare import compare_detect
+    from .errors import CheckFailed
+
+    with console.status("running the detection reference on the dump ..."):
+        c = compare_detect(run_dir, tolerances)
+    table = Table(title=f"firmware vs reference (detection) — {c.dump_dir}")
+    for col in ("stage", "metric", "value", "tolerance", "status"):
+        table.add_column(col, no_wrap=True)
+    failing = {m.name for m, _ in c.failures()}
+    for m in c.metrics:
+        tol = c.tolerances.get(m.name)
+        value = "n/a" if m.value is None else (f"{m.value:.3f} %" if m.unit == "%" else f"{m.value:.4g}")
+        status = "" if tol is None else ("n/a" if m.value is None else "[red]FAIL[/]" if m.name in failing else "[green]ok[/]")
+        table.add_row(m.stage, m.name, value, tol.text() if tol else "", status)
+    console.print(table)
     if failing:
         raise CheckFailed("comparison outside tolerance: " + ", ".join(
             f"{m.name} = {m.value:.4g} (needs {t.text()})" for m, t in c.failures()))

@@ -74,6 +74,22 @@ TEST(DetectScene, BoxesAndDistancesRecovered) {
   }
 }
 
+TEST(DetectScene, DetectorReuseGivesSameResult) {
+  // The same Detector on a big frame, a small one, then the big one again: scratch reuse must not
+  // leak state between frames.
+  const auto big = two_boxes(0.2, 0.02, 9);
+  const auto small = test::make_scene(97, 61, {{10, 30, 2.0, 0.5}}, 3, 0.2, 0.0, 80.0);
+  const Detector det(DetectParams{});
+  const DetectResult a = det.detect(big.disp, big.rgb, big.calib);
+  (void)det.detect(small.disp, small.rgb, small.calib);
+  const DetectResult b = det.detect(big.disp, big.rgb, big.calib);
+  const DetectResult c = Detector(DetectParams{}).detect(big.disp, big.rgb, big.calib);
+  EXPECT_EQ(a.obstacle_labels.data, b.obstacle_labels.data);
+  EXPECT_EQ(a.kept.data, c.kept.data);
+  ASSERT_EQ(a.obstacles.size(), b.obstacles.size());
+  for (std::size_t i = 0; i < a.obstacles.size(); ++i) EXPECT_EQ(a.obstacles[i].disparity_q4, b.obstacles[i].disparity_q4);
+}
+
 TEST(DetectScene, ClassesFollowLimits) {
   DetectParams p;
   p.near_m = 3.0;

@@ -12,6 +12,8 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -171,8 +173,12 @@ struct UDispResult {
   std::vector<ImageU8> kept_cells;
   ImageU8 kept;
 };
+// Reusable buffers of the u-disparity stage (the clusters' histograms: clusters * bins * width int32).
+struct UDispScratch {
+  std::vector<std::int32_t> hist, support;
+};
 UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int clusters, int bins,
-                               const DetectParams& p);
+                               const DetectParams& p, UDispScratch* scratch = nullptr);
 
 // 8-connected components of mask==1 whose neighbouring Q4 disparities differ by <= max_step_q4.
 // Two-pass union-find; labels 1.. numbered in raster order of each component's first pixel.
@@ -186,10 +192,12 @@ ObstacleClass classify_distance(double z_m, const DetectParams& p);
 
 }  // namespace detect
 
-// Chains the stages, one line each; reuses nothing heavier than the result buffers.
+// Chains the stages, one line each. Keeps the u-disparity histograms between frames (the one large
+// per-frame allocation); detect() holds a mutex, so one Detector serves one stream at a time.
 class Detector {
  public:
   explicit Detector(const DetectParams& params);
+  ~Detector();
   // disp: refined left disparity (Q4). rgb: left colour image of the same size, or empty for a mono
   // camera (the sky stage is skipped). calib: focal_px and baseline_m must be > 0 (checked by the
   // caller when loading the calibration).
@@ -198,6 +206,8 @@ class Detector {
 
  private:
   DetectParams params_;
+  mutable std::mutex scratch_mu_;
+  std::unique_ptr<detect::UDispScratch> scratch_;
 };
 
 }  // namespace fs

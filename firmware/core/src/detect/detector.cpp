@@ -41,10 +41,13 @@ DetectParams::DetectParams() {
   sky_ranges[2] = {true, 345, 45, 20, 100, 55, 100};   // sunset orange-red (wraps through 0)
 }
 
-Detector::Detector(const DetectParams& params) : params_(params) {}
+Detector::Detector(const DetectParams& params)
+    : params_(params), scratch_(std::make_unique<detect::UDispScratch>()) {}
+Detector::~Detector() = default;
 
 DetectResult Detector::detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib) const {
   using clock = std::chrono::steady_clock;
+  const std::lock_guard<std::mutex> lock(scratch_mu_);
   const DetectParams& p = params_;
   DetectResult r;
   const int w = disp.width, h = disp.height;
@@ -91,7 +94,8 @@ DetectResult Detector::detect(const ImageI16& disp, const ImageRgb8& rgb, const 
   lap(DetectStage::KMeans);
 
   // (d) u-disparity eq. (24)-(25) per cluster: cells, runs, back to pixels.
-  detect::UDispResult ud = detect::u_disparity_filter(disp, r.cluster_labels, int(r.centres_q4.size()), r.bins, p);
+  detect::UDispResult ud = detect::u_disparity_filter(disp, r.cluster_labels, int(r.centres_q4.size()), r.bins, p,
+                                                         scratch_.get());
   r.udisp_kept = std::move(ud.kept_cells);
   r.kept = std::move(ud.kept);
   lap(DetectStage::UDisparity);

@@ -19,13 +19,16 @@
 namespace fs::detect {
 
 UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int clusters, int bins,
-                               const DetectParams& p) {
+                               const DetectParams& p, UDispScratch* scratch) {
   UDispResult res;
+  UDispScratch local;
+  UDispScratch& sc = scratch ? *scratch : local;
   const int w = disp.width, h = disp.height;
   res.kept = ImageU8(w, h, 0);
   if (clusters <= 0) return res;
   // hist[(c * bins + d) * w + x], laid out so that a (cluster, d) row is contiguous over x.
-  std::vector<std::int32_t> hist(std::size_t(clusters) * std::size_t(bins) * std::size_t(w), 0);
+  std::vector<std::int32_t>& hist = sc.hist;
+  hist.assign(std::size_t(clusters) * std::size_t(bins) * std::size_t(w), 0);
   for (int y = 0; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
     const std::uint8_t* l = labels.row(y);
@@ -33,7 +36,8 @@ UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int 
       if (l[x] != kNoCluster) ++hist[(std::size_t(l[x]) * std::size_t(bins) + std::size_t(disp_bin(d[x]))) * std::size_t(w) + std::size_t(x)];
   }
   const int t = p.udisp_d_tolerance_px;
-  std::vector<std::int32_t> support(std::size_t(bins) * std::size_t(w));
+  std::vector<std::int32_t>& support = sc.support;
+  support.resize(std::size_t(bins) * std::size_t(w));
   std::vector<std::uint8_t> ok(static_cast<std::size_t>(w));
   for (int c = 0; c < clusters; ++c) {
     const std::int32_t* hc = hist.data() + std::size_t(c) * std::size_t(bins) * std::size_t(w);

@@ -1,0 +1,343 @@
+"""Float64 reference of the obstacle detection (paper Section III-B, eq. 16-25) — the desktop twin
+of firmware/core/src/detect/, with the same parameters (``[detect]`` of the config) and the same
+choices (docs/detection.md), written independently in float/numpy:
+
+  road     eq. (16)-(17)  v-disparity, weighted RANSAC (same xorshift64* stream) + per-row refit,
+                          |d - (a v + b)| <= tol in float, closing by OpenCV (rectangle)
+  sky      eq. (18)-(21)  HSV in float, exactly as written (no rounding)
+  kmeans   eq. (22)-(23)  1-D Lloyd in float on the pixels, quantile init, centre merge
+  udisp    eq. (24)-(25)  per-cluster column histograms (numpy), support and runs
+  objects                 8-connected flood fill with the disparity step, float median, Z = f B / d
+
+Where the firmware rounds (Q4 disparities, integer HSV, integer k-means means) this twin does not,
+so results agree up to those roundings; ``fuzzyctl compare`` measures the agreement.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+_M64 = (1 << 64) - 1
+
+
+@dataclass
+class DetectParams:
+    values: dict[str, Any]
+
+    def __getattr__(self, key: str) -> Any:
+        try:
+            return self.values[key]
+        except KeyError as exc:
+            raise AttributeError(key) from exc
+
+
+@dataclass
+class Obstacle:
+    id: int
+    box: tuple[int, int, int, int]
+    pixel_count: int
+    disparity_px: float
+    distance_m: float
+    lateral_m: float
+    cls: str
+
+
+@dataclass
+class DetectReferenceResult:
+    bins: int
+    vdisp: np.ndarray
+    road_found: bool
+    road_a: float
+    road_b: float
+    horizon_row: int
+    road_raw: np.ndarray
+    road_mask: np.ndarray
+    sky_skipped: bool
+    sky_rows: int
+    sky_mask: np.ndarray
+    candidates: np.ndarray
+    centres_px: list[float]
+    cluster_labels: np.ndarray
+    kept: np.ndarray
+    obstacles: list[Obstacle] = field(default_factory=list)
+    obstacle_labels: np.ndarray | None = None
+
+
+def params_from_config(cfg) -> DetectParams:
+    """The ``[detect]`` section of a :class:`fuzzyctl.config.Config` (already validated)."""
+    return DetectParams(dict(cfg.as_dict()["detect"]))
+
+
+# ---- (a) road ---------------------------------------------------------------------------------
+
+def disp_bin(d: np.ndarray) -> np.ndarray:
+    """round(d), half up (d >= 0)."""
+    return np.floor(d + 0.5).astype(np.int64)
+
+
+def v_disparity(disp: np.ndarray, bins: int) -> np.ndarray:
+    """eq. (17): per row, count of pixels with round(d) = column."""
+    h = disp.shape[0]
+    valid = np.isfinite(disp)
+    rows = np.nonzero(valid)[0]
+    out = np.zeros((h, bins), np.int64)
+    np.add.at(out, (rows, disp_bin(disp[valid])), 1)
+    return out
+
+
+class _XorShift64Star:
+    """Same generator as the firmware (firmware/core/src/detect/vdisparity.cpp)."""
+
+    def __init__(self, seed: int):
+        self.s = (0x9E3779B97F4A7C15 ^ (seed & 0xFFFFFFFF)) & _M64 or 1
+
+    def next(self) -> int:
+        s = self.s
+        s ^= s >> 12
+        s ^= (s << 25) & _M64
+        s ^= s >> 27
+        self.s = s
+        return (s * 0x2545F4914F6CDD1D) & _M64
+
+
+def fit_road_line(vd: np.ndarray, valid_pixels: int, p: DetectParams) -> tuple[bool, float, float, int]:
+    v_idx, d_idx = np.nonzero(vd)
+    keep = (d_idx >= 1) & (vd[v_idx, d_idx] >= p.road_min_cell_count)
+    v_c, d_c = v_idx[keep].astype(np.float64), d_idx[keep].astype(np.float64)
+    w = vd[v_idx[keep], d_idx[keep]].astype(np.int64)
+    if len(w) < 2:
+        return False, 0.0, 0.0, -1
+    cum = np.cumsum(w)
+    total = int(cum[-1])
+    rng = _XorShift64Star(int(p.road_ransac_seed))
+    tol = p.road_fit_tolerance_px
+
+    def score(a: float, b: float) -> int:
+        return int(w[np.abs(d_c - (a * v_c + b)) <= tol].sum())
+
+    best = (-1, 0.0, 0.0)
+    for _ in range(int(p.road_ransac_iterations)):
+        i1 = int(np.searchsorted(cum, rng.next() % total, side="right"))
+        i2 = int(np.searchsorted(cum, rng.next() % total, side="right"))
+        if v_c[i1] == v_c[i2]:
+            continue
+        a = (d_c[i2] - d_c[i1]) / (v_c[i2] - v_c[i1])
+        if a < p.road_slope_min or a > p.road_slope_max:
+            continue
+        b = d_c[i1] - a * v_c[i1]
+        s = score(a, b)
+        if s > best[0]:
+            best = (s, a, b)
+    bs, ba, bb = best
+    if bs <= 0:
+        return False, 0.0, 0.0, -1
+    # Refit: per row the inlier cell with the most pixels, weighted least squares.
+    inl = np.abs(d_c - (ba * v_c + bb)) <= tol
+    rows: dict[int, int] = {}
+    for i in np.nonzero(inl)[0]:
+        r = int(v_c[i])
+        if r not in rows or w[i] > w[rows[r]]:
+            rows[r] = i
+    idx = np.array(sorted(rows.values()))
+    if len(idx) >= 2:
+        a, b = np.polyfit(v_c[idx], d_c[idx], 1, w=np.sqrt(w[idx].astype(np.float64)))
+        s = score(a, b)
+        if p.road_slope_min <= a <= p.road_slope_max and s * 100 >= bs * 98:
+            bs, ba, bb = s, float(a), float(b)
+    if bs < p.road_min_support_pct / 100.0 * valid_pixels:
+        return False, 0.0, 0.0, -1
+    horizon = int(np.clip(np.floor(-bb / ba) + 1, 0, vd.shape[0]))
+    return True, float(ba), float(bb), horizon
+
+
+def road_pixels(disp: np.ndarray, a: float, b: float, horizon: int, tol: float) -> np.ndarray:
+    h, w = disp.shape
+    v = np.arange(h, dtype=np.float64)[:, None]
+    with np.errstate(invalid="ignore"):
+        on = np.abs(disp - (a * v + b)) <= tol + 1e-9
+    on &= np.isfinite(disp)
+    on[:horizon] = False
+    return on.astype(np.uint8)
+
+
+def close_mask(mask: np.ndarray, radius: int) -> np.ndarray:
+    """Closing with a (2r+1)^2 rectangle; OpenCV's default border leaves the border untouched."""
+    if radius <= 0:
+        return mask.copy()
+    k = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
+    return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, k)
+
+
+# ---- (b) sky ----------------------------------------------------------------------------------
+
+def rgb_to_hsv(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """eq. (18)-(21) in float: H [deg, 0..360), S and V [0..100]."""
+    x = rgb.astype(np.float64) / 255.0  # eq. (18)
+    r, g, b = x[..., 0], x[..., 1], x[..., 2]
+    cmax, cmin = x.max(-1), x.min(-1)
+    delta = cmax - cmin
+    safe = np.where(delta > 0, delta, 1.0)
+    h = np.where(cmax == r, 60.0 * np.mod((g - b) / safe, 6.0),
+                 np.where(cmax == g, 60.0 * ((b - r) / safe + 2.0), 60.0 * ((r - g) / safe + 4.0)))
+    h = np.where(delta > 0, h, 0.0)  # eq. (19)
+    s = np.where(cmax > 0, delta / np.where(cmax > 0, cmax, 1.0) * 100.0, 0.0)  # eq. (20)
+    v = cmax * 100.0  # eq. (21)
+    return h, s, v
+
+
+def sky_mask(rgb: np.ndarray, disp: np.ndarray, rows: int, p: DetectParams) -> np.ndarray:
+    h, s, v = rgb_to_hsv(rgb)
+    m = np.zeros(h.shape, bool)
+    for name in ("blue", "grey", "sunset"):
+        g = lambda k: p.values[f"sky_{name}_{k}"]  # noqa: E731
+        if not g("enabled"):
+            continue
+        h0, h1 = g("h_min"), g("h_max")
+        hue = (h >= h0) & (h <= h1) if h0 <= h1 else (h >= h0) | (h <= h1)
+        m |= hue & (s >= g("s_min")) & (s <= g("s_max")) & (v >= g("v_min")) & (v <= g("v_max"))
+    if p.sky_max_disparity_px > 0:
+        with np.errstate(invalid="ignore"):
+            m &= ~(np.isfinite(disp) & (disp > p.sky_max_disparity_px))
+    m[max(0, rows):] = False
+    return m.astype(np.uint8)
+
+
+# ---- (c) k-means ------------------------------------------------------------------------------
+
+def kmeans_1d(values: np.ndarray, k: int, max_it: int, merge_px: float) -> tuple[list[float], np.ndarray]:
+    """Lloyd in float with quantile init; returns centres nearest first and each value's cluster."""
+    if len(values) == 0:
+        return [], np.zeros(0, np.int64)
+    srt = np.sort(values)
+    n = len(values)
+    c = np.array([srt[(n * (2 * i + 1)) // (2 * k)] for i in range(k)], np.float64)
+    for _ in range(max_it):
+        a = np.argmin(np.abs(values[:, None] - c[None, :]), axis=1)  # first minimum = lower index
+        new = c.copy()
+        for i in range(k):
+            sel = values[a == i]
+            if len(sel):
+                new[i] = sel.mean()
+        if np.allclose(new, c, atol=1e-12, rtol=0):
+            break
+        c = new
+    a = np.argmin(np.abs(values[:, None] - c[None, :]), axis=1)
+    counts = np.bincount(a, minlength=k)
+    order = [i for i in np.argsort(-c, kind="stable") if counts[i] > 0]
+    groups: list[list[int]] = []
+    prev = None
+    for i in order:
+        if not groups or merge_px <= 0 or prev - c[i] >= merge_px:
+            groups.append([])
+        groups[-1].append(int(i))
+        prev = c[i]
+    remap = np.full(k, -1, np.int64)
+    centres = []
+    for gi, g in enumerate(groups):
+        remap[g] = gi
+        centres.append(float(np.sum(c[g] * counts[g]) / np.sum(counts[g])))
+    return centres, remap[a]
+
+
+# ---- (d) u-disparity --------------------------------------------------------------------------
+
+def u_disparity_filter(disp: np.ndarray, labels: np.ndarray, clusters: int, bins: int, p: DetectParams) -> np.ndarray:
+    h, w = disp.shape
+    kept = np.zeros((h, w), np.uint8)
+    t = int(p.udisp_d_tolerance_px)
+    for c in range(clusters):
+        ys, xs = np.nonzero(labels == c)
+        ds = disp_bin(disp[ys, xs])
+        u = np.zeros((bins, w), np.int64)  # eq. (25)
+        np.add.at(u, (ds, xs), 1)
+        padded = np.pad(u, ((t, t), (0, 0)))
+        support = sum(padded[i:i + bins] for i in range(2 * t + 1))
+        ok = (u > 0) & (support >= p.udisp_min_height_px)
+        cells = np.zeros_like(ok)
+        for d in np.nonzero(ok.any(axis=1))[0]:
+            row = np.concatenate([[0], ok[d].astype(np.int8), [0]])
+            starts, ends = np.nonzero(np.diff(row) == 1)[0], np.nonzero(np.diff(row) == -1)[0]
+            for s, e in zip(starts, ends):
+                if e - s >= p.udisp_min_run_px:
+                    cells[d, s:e] = True
+        kept[ys, xs] = cells[ds, xs]
+    return kept
+
+
+# ---- (e) components and distance -------------------------------------------------------------
+
+def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float) -> tuple[np.ndarray, int]:
+    h, w = mask.shape
+    lab = np.zeros((h, w), np.int32)
+    n = 0
+    for y0, x0 in zip(*np.nonzero(mask)):
+        if lab[y0, x0]:
+            continue
+        n += 1
+        lab[y0, x0] = n
+        q = deque([(y0, x0)])
+        while q:
+            y, x = q.popleft()
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    yy, xx = y + dy, x + dx
+                    if 0 <= yy < h and 0 <= xx < w and mask[yy, xx] and not lab[yy, xx] \
+                            and abs(disp[yy, xx] - disp[y, x]) <= max_step_px + 1e-9:
+                        lab[yy, xx] = n
+                        q.append((yy, xx))
+    return lab, n
+
+
+def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
+    """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
+    calib: focal_px, baseline_m, cx, cy."""
+    h, w = disp.shape
+    valid = np.isfinite(disp)
+    bins = int(disp_bin(disp[valid]).max()) + 1 if valid.any() else 1
+    vd = v_disparity(disp, bins)
+    found, a, b, horizon = (fit_road_line(vd, int(valid.sum()), p) if p.road_enabled else (False, 0.0, 0.0, -1))
+    road_raw = road_pixels(disp, a, b, horizon, p.road_tolerance_px) if found else np.zeros((h, w), np.uint8)
+    road = close_mask(road_raw, int(p.road_close_radius))
+    skipped = rgb is None or not p.sky_enabled
+    rows = 0
+    if skipped:
+        sky = np.zeros((h, w), np.uint8)
+    else:
+        rows = horizon if (p.sky_limit == "horizon" and found) else int(np.floor(p.sky_upper_fraction * h + 0.5))
+        sky = sky_mask(rgb, disp, rows, p)
+    with np.errstate(invalid="ignore"):
+        cand = valid & (disp >= p.kmeans_min_disparity_px) & (road == 0) & (sky == 0)
+    centres, lab = kmeans_1d(disp[cand], int(p.kmeans_k), int(p.kmeans_max_iterations), p.kmeans_merge_px)
+    labels = np.full((h, w), -1, np.int64)
+    labels[cand] = lab
+    kept = u_disparity_filter(disp, labels, len(centres), bins, p)
+    comp, n = components(kept, disp, p.cc_max_step_px)
+    obstacles = []
+    comp_ids = []
+    for c in range(1, n + 1):
+        ys, xs = np.nonzero(comp == c)
+        if len(xs) < p.min_area_px:
+            continue
+        d = max(float(np.median(disp[ys, xs])), 1.0 / 16)
+        z = calib["focal_px"] * calib["baseline_m"] / d
+        x0, x1 = int(xs.min()), int(xs.max())
+        cls = "near" if z < p.near_m else "far" if z >= p.far_m else "mid"
+        obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
+                                  (0.5 * (x0 + x1) - calib["cx"]) * z / calib["focal_px"], cls))
+        comp_ids.append(c)
+    order = sorted(range(len(obstacles)), key=lambda i: -obstacles[i].disparity_px)
+    ol = np.zeros((h, w), np.int32)
+    out = []
+    for rank, i in enumerate(order):
+        o = obstacles[i]
+        o.id = rank
+        ol[comp == comp_ids[i]] = rank + 1
+        out.append(o)
+    return DetectReferenceResult(bins, vd, found, a, b, horizon, road_raw, road, skipped, rows, sky,
+                                 cand.astype(np.uint8), centres, np.where(labels >= 0, labels, 255).astype(np.uint8),
+                                 kept, out, ol)

@@ -1,0 +1,117 @@
+"""Float64 detection reference (fuzzyctl.reference.detect) and `fuzzyctl compare` on detect dumps:
+the reference's stages against direct computations, and the firmware's detect dump against the
+reference (oracle and matcher disparities), including a corrupted dump that must fail."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import detect_synth
+from fuzzyctl import cli
+from fuzzyctl.config import load_config
+from fuzzyctl.detect_compare import compare_detect
+from fuzzyctl.reference import detect as refdet
+
+
+def params():
+    return refdet.params_from_config(load_config())
+
+
+def test_hsv_float_equations():
+    rgb = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 0, 10], [100, 150, 230], [0, 0, 0], [200, 200, 200]]],
+                   np.uint8)
+    h, s, v = refdet.rgb_to_hsv(rgb)
+    assert h[0, :4] == pytest.approx([0, 120, 240, 360 - 60 * 10 / 255])
+    assert h[0, 4] == pytest.approx(60 * ((100 - 150) / 130 + 4))  # Cmax = B
+    assert s[0, 4] == pytest.approx(130 / 230 * 100) and v[0, 4] == pytest.approx(230 / 255 * 100)
+    assert (s[0, 5], v[0, 5], h[0, 6], s[0, 6]) == (0, 0, 0, 0)
+
+
+def test_closing_keeps_border_and_fills_holes():
+    m = np.ones((20, 30), np.uint8)
+    m[8:10, 5:25] = 0  # 2-row gap: filled by r = 2
+    m[0, :] = 0        # the top row is not "eroded in" from outside
+    c = refdet.close_mask(m, 2)
+    assert c[8:10, 5:25].all()
+    assert c[1:, :].all()
+
+
+def test_kmeans_merge_and_order():
+    vals = np.concatenate([np.full(100, 10.0) + np.linspace(-0.2, 0.2, 100), np.full(50, 4.0)])
+    centres, lab = refdet.kmeans_1d(vals, 6, 30, merge_px=1.0)
+    assert len(centres) == 2 and centres[0] == pytest.approx(10.0, abs=0.05) and centres[1] == pytest.approx(4.0)
+    assert (lab[:100] == 0).all() and (lab[100:] == 1).all()
+    centres6, _ = refdet.kmeans_1d(vals, 6, 30, merge_px=0.0)
+    assert len(centres6) > 2 and centres6 == sorted(centres6, reverse=True)
+
+
+def test_reference_finds_scene_obstacles():
+    left, _, disp, road, _, _, gt = detect_synth.render(detect_synth.SCENES[0][1], "clear", seed=1)
+    d = np.where(disp > 0, disp, np.nan)
+    calib = {"focal_px": detect_synth.F, "baseline_m": detect_synth.B, "cx": detect_synth.CX, "cy": detect_synth.CY}
+    r = refdet.detect(d, left[..., ::-1], calib, params())
+    assert r.road_found and r.road_a == pytest.approx(0.2, abs=0.02)
+    assert [o.distance_m for o in r.obstacles] == pytest.approx([g["distance_m"] for g in gt], rel=0.05)
+    assert (r.road_mask.astype(bool) & road).sum() / (r.road_mask.astype(bool) | road).sum() > 0.9
+    mono = refdet.detect(d, None, calib, params())
+    assert mono.sky_skipped and not mono.sky_mask.any() and len(mono.obstacles) == 2
+
+
+# ---- firmware dump vs reference --------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def dumps(firmware_bin, tmp_path_factory) -> dict[str, Path]:
+    root = detect_synth.write_dataset(tmp_path_factory.mktemp("sim"))
+    tr = root / "training"
+    out = {}
+    for mode in ("oracle", "matcher"):
+        d = tmp_path_factory.mktemp(mode)
+        src = ["--disparity", tr / "disp_occ_0/000000_10.png"] if mode == "oracle" else \
+              ["--right", tr / "image_3/000000_10.png", "--max-disparity", "32"]
+        p = subprocess.run([str(firmware_bin), "detect", "--left", str(tr / "image_2/000000_10.png"), *map(str, src),
+                            "--calib", str(tr / "sim_gt/000000_10.json"), "--out", str(d), "--dump"],
+                           capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0, p.stderr
+        out[mode] = d
+    return out
+
+
+@pytest.mark.firmware
+@pytest.mark.parametrize("mode", ["oracle", "matcher"])
+def test_firmware_dump_matches_reference(dumps, mode):
+    c = compare_detect(dumps[mode])
+    assert not c.failures(), [(m.name, m.value) for m, _ in c.failures()]
+    vals = {m.name: m.value for m in c.metrics}
+    assert vals["obstacle_count_abs_diff"] == 0 and vals["obstacle_box_iou_min"] >= 0.8
+
+
+@pytest.mark.firmware
+def test_compare_catches_a_corrupted_dump(dumps, tmp_path):
+    bad = tmp_path / "bad"
+    shutil.copytree(dumps["oracle"], bad)
+    road = np.load(bad / "dump/road_mask.npy")
+    road[road.shape[0] // 2:, :] ^= 1  # the lower half's road decisions inverted
+    np.save(bad / "dump/road_mask.npy", road)
+    meta = json.loads((bad / "dump/detect_meta.json").read_text())
+    meta["obstacles"][0]["distance_m"] *= 1.2
+    (bad / "dump/detect_meta.json").write_text(json.dumps(meta))
+    failing = {m.name for m, _ in compare_detect(bad).failures()}
+    assert {"road_mask_agreement_pct", "obstacle_distance_rel_diff_max"} <= failing
+    assert cli.main(["compare", str(bad)]) != 0
+    assert cli.main(["compare", str(dumps["oracle"])]) == 0
+
+
+@pytest.mark.firmware
+def test_reference_detect_command(dumps, tmp_path):
+    assert cli.main(["reference", "detect", "--dump", str(dumps["oracle"]), "--out", str(tmp_path / "ref")]) == 0
+    doc = json.loads((tmp_path / "ref/obstacles.json").read_text())
+    fw = json.loads((dumps["oracle"] / "obstacles.json").read_text())
+    assert len(doc["obstacles"]) == len(fw["obstacles"]) == 2
+    assert np.load(tmp_path / "ref/road_mask.npy").shape == np.load(dumps["oracle"] / "dump/road_mask.npy").shape
+    assert cli.main(["reference", "detect", "--dump", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
