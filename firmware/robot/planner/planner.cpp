@@ -36,7 +36,7 @@ struct GlobalPlan {
 };
 
 bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, double inflate, Vec2 start, Vec2 goal,
-                      double margin, double res, GlobalPlan& out) {
+                      double margin, double res, bool check_pockets, GlobalPlan& out) {
   Vec2 lo{std::min(start.x, goal.x) - margin, std::min(start.y, goal.y) - margin};
   Vec2 hi{std::max(start.x, goal.x) + margin, std::max(start.y, goal.y) + margin};
   detail::Grid& g = out.grid;
@@ -53,7 +53,7 @@ bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, 
   // An enclosed goal or robot: the pocket is found in a few hundred cells, while A* would expand
   // the whole (large) grid on every one of the retries below.
   const int pocket = static_cast<int>(std::ceil(M_PI * 4.0 / (res * res)));  // ~ a 2 m disc
-  if (detail::in_small_pocket(g, goal, pocket) || detail::in_small_pocket(g, start, pocket)) {
+  if (check_pockets && (detail::in_small_pocket(g, goal, pocket) || detail::in_small_pocket(g, start, pocket))) {
     out.path.clear();
     return false;
   }
@@ -75,11 +75,12 @@ GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 
     gp.only_static = only_static;
     gp.reduced_margin = false;
     const double m = pp.grid_margin_m;
-    if (build_and_search(obs, only_static, full, start, goal, m, res, gp)) return gp;
+    // (the pocket test is skipped on the first try, which usually succeeds)
+    if (build_and_search(obs, only_static, full, start, goal, m, res, only_static, gp)) return gp;
     gp.reduced_margin = true;
-    if (build_and_search(obs, only_static, bare, start, goal, m, res, gp)) return gp;
-    if (build_and_search(obs, only_static, bare, start, goal, m, 0.5 * res, gp)) return gp;
-    if (build_and_search(obs, only_static, bare, start, goal, 2.0 * m, res, gp)) return gp;
+    if (build_and_search(obs, only_static, bare, start, goal, m, res, true, gp)) return gp;
+    if (build_and_search(obs, only_static, bare, start, goal, m, 0.5 * res, true, gp)) return gp;
+    if (build_and_search(obs, only_static, bare, start, goal, 2.0 * m, res, true, gp)) return gp;
   }
   return gp;
 }
@@ -101,8 +102,8 @@ struct ArcEval {
   double t_collide = kInf;  // first time the hard margin is violated
   double min_gap = kInf;    // smallest surface gap before that [m]
   double best_d = kInf;     // closest approach to the carrot before that [m]
-  double heading_at_best = M_PI;   // heading error to the carrot at the closest approach [rad]
-  double heading_after_T = M_PI;   // ... after one control period (what the command does now)
+  double heading_at_best = -1;   // cos of the heading error to the carrot at the closest approach
+  double heading_after_T = -1;   // ... after one control period (what the command does now)
 };
 
 // Robot along a constant (v, omega) arc; with brake = true, v and omega decay at the acceleration
@@ -116,9 +117,10 @@ ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::ve
   double x = p0.x, y = p0.y, c = std::cos(p0.yaw), s = std::sin(p0.yaw);
   double cv = v, cw = w;
   double rc = std::cos(cw * dt), rs = std::sin(cw * dt);
+  // cosine of the heading error; acos is taken once per arc at the end
   auto heading_err = [&](double px, double py) {
     const double dx = carrot.x - px, dy = carrot.y - py, d = std::sqrt(dx * dx + dy * dy);
-    return d > 1e-6 ? std::acos(std::clamp((c * dx + s * dy) / d, -1.0, 1.0)) : 0.0;
+    return d > 1e-6 ? std::clamp((c * dx + s * dy) / d, -1.0, 1.0) : 1.0;
   };
   auto look = [&](double px, double py) {
     const double dx = carrot.x - px, dy = carrot.y - py, d = std::sqrt(dx * dx + dy * dy);
@@ -234,7 +236,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
       // makes no progress (turning on the spot). Judged along the arc, not at its end, so fast arcs
       // that pass the carrot are not punished for overshooting it.
       const double progress = (a.best_d - carrot_dist0) / std::max(1e-3, rp_.max_speed_mps * pp_.horizon_s);
-      const double heading = a.best_d < carrot_dist0 - 0.05 ? a.heading_at_best : a.heading_after_T;
+      const double heading = std::acos(a.best_d < carrot_dist0 - 0.05 ? a.heading_at_best : a.heading_after_T);
       const double soft = pp_.safety_margin_m + rp_.radius_m;
       const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
       const double cost = pp_.w_heading * heading / M_PI + pp_.w_progress * progress +
