@@ -26,7 +26,9 @@ def test_schema_entries_are_well_formed():
     schema = cfgmod.load_schema()
     for fields in schema.values():
         for spec in fields.values():
-            if spec.type not in ("bool", "string"):  # strings have choices, not a range
+            if spec.type == "string":  # strings have choices (or are free text), no range
+                assert spec.min is None and spec.max is None, spec.key
+            elif spec.type != "bool":
                 assert spec.min is not None and spec.max is not None, spec.key
                 assert spec.min <= spec.max, spec.key
             assert spec.doc, f"{spec.key} has no doc"

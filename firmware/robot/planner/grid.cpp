@@ -67,6 +67,32 @@ struct Node {
 };
 }  // namespace
 
+bool in_small_pocket(const Grid& g, Vec2 p, int budget) {
+  int px, py;
+  g.cell_of(p, px, py);
+  if (!g.inside(px, py) || g.blocked[g.idx(px, py)]) return false;
+  std::vector<std::uint8_t> seen(g.blocked.size(), 0);
+  std::vector<int> stack{g.idx(px, py)};
+  seen[stack[0]] = 1;
+  int count = 0;
+  while (!stack.empty()) {
+    const int cur = stack.back();
+    stack.pop_back();
+    if (++count > budget) return false;
+    const int cx = cur % g.nx, cy = cur / g.nx;
+    for (int k = 0; k < 8; ++k) {
+      const int x = cx + kDx[k], y = cy + kDy[k];
+      if (!g.inside(x, y)) continue;
+      const int ni = g.idx(x, y);
+      if (seen[ni] || g.blocked[ni]) continue;
+      if (k >= 4 && (g.blocked[g.idx(cx + kDx[k], cy)] || g.blocked[g.idx(cx, cy + kDy[k])])) continue;
+      seen[ni] = 1;
+      stack.push_back(ni);
+    }
+  }
+  return true;
+}
+
 std::vector<Vec2> astar(const Grid& g, Vec2 start, Vec2 goal) {
   int sx, sy, gx, gy;
   g.cell_of(start, sx, sy);

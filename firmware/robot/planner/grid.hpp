@@ -35,6 +35,11 @@ struct Grid {
   bool segment_free(Vec2 a, Vec2 b) const;
 };
 
+// Is p's free region smaller than `budget` cells (a pocket, e.g. an enclosed goal)? 8-connected
+// flood fill that stops after `budget` cells. Makes "blocked" cheap to detect when the goal or the
+// robot is enclosed, where A* would otherwise search the whole grid.
+bool in_small_pocket(const Grid& g, Vec2 p, int budget);
+
 // 8-connected A* (octile heuristic) from start to goal cell; returns the path of cell centres with
 // the exact start and goal positions at its ends, or empty when none exists.
 std::vector<Vec2> astar(const Grid& g, Vec2 start, Vec2 goal);

@@ -62,7 +62,7 @@ NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParam
     const double feature = uni(rng, 0, 1);
     if (!blocked && feature < 0.3) {  // wall across the direct path with one narrow gap
       const double t = uni(rng, 0.35, 0.65) * norm(sc.goal - s);
-      const double gap = uni(rng, 2.0 * (rp.radius_m + 0.05), 2.0 * (rp.radius_m + 0.2));
+      const double gap = uni(rng, 2.0 * (rp.radius_m + 0.08), 2.0 * (rp.radius_m + 0.25));
       const double off = uni(rng, -1.0, 1.0), r = 0.15;
       const Vec2 c0 = s + t * dir;
       for (double y = off + 0.5 * gap + r; y < 3.5; y += 2 * r) obs.push_back({c0 + y * nrm, r, {}});
@@ -130,6 +130,7 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
   res.min_gap_m = std::numeric_limits<double>::infinity();
   Pose2D prev = sc.start;
   PlanStatus status = PlanStatus::kMoving;
+  double blocked_still_s = 0;
   for (;;) {
     const double t = ns_to_s(clock.now_ns());
     const Pose2D pose = motors.pose();
@@ -160,6 +161,10 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
       }
     }
     if (res.collided) break;
+    // unsolvable scenario: done once the robot has stood still, blocked, for 3 s
+    const bool standing_now = std::abs(motors.wheel_left_mps()) < 1e-6 && std::abs(motors.wheel_right_mps()) < 1e-6;
+    blocked_still_s = (status == PlanStatus::kBlocked && standing_now) ? blocked_still_s + pp.control_period_s : 0.0;
+    if (!sc.solvable && blocked_still_s >= 3.0) break;
     if (ns_to_s(clock.now_ns()) > max_time) {
       res.timed_out = true;
       break;

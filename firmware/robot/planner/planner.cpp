@@ -26,7 +26,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // moving obstacle means wait, not blocked) [m/s].
 constexpr double kStaticSpeed = 0.05;
 // Grid size cap per axis (bounds the per-frame cost when obstacles are far apart).
-constexpr int kMaxCellsPerAxis = 300;
+constexpr int kMaxCellsPerAxis = 300;  // (doubled for the fine retry)
 
 struct GlobalPlan {
   std::vector<Vec2> path;
@@ -36,11 +36,11 @@ struct GlobalPlan {
 };
 
 bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, double inflate, Vec2 start, Vec2 goal,
-                      const PlannerParams& pp, GlobalPlan& out) {
-  Vec2 lo{std::min(start.x, goal.x) - pp.grid_margin_m, std::min(start.y, goal.y) - pp.grid_margin_m};
-  Vec2 hi{std::max(start.x, goal.x) + pp.grid_margin_m, std::max(start.y, goal.y) + pp.grid_margin_m};
+                      double margin, double res, bool check_pockets, GlobalPlan& out) {
+  Vec2 lo{std::min(start.x, goal.x) - margin, std::min(start.y, goal.y) - margin};
+  Vec2 hi{std::max(start.x, goal.x) + margin, std::max(start.y, goal.y) + margin};
   detail::Grid& g = out.grid;
-  g.init(lo, hi, pp.grid_resolution_m, kMaxCellsPerAxis);
+  g.init(lo, hi, res, 2 * kMaxCellsPerAxis);
   for (const CircleObstacle& o : obs) {
     if (static_only && norm(o.vel) > kStaticSpeed) continue;
     g.fill_disc(o.c, o.r + inflate);
@@ -50,6 +50,13 @@ bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, 
   int sx, sy;
   g.cell_of(start, sx, sy);
   if (g.inside(sx, sy) && g.blocked[g.idx(sx, sy)]) g.clear_disc(start, 1.5 * g.res);
+  // An enclosed goal or robot: the pocket is found in a few hundred cells, while A* would expand
+  // the whole (large) grid on every one of the retries below.
+  const int pocket = static_cast<int>(std::ceil(M_PI * 4.0 / (res * res)));  // ~ a 2 m disc
+  if (check_pockets && (detail::in_small_pocket(g, goal, pocket) || detail::in_small_pocket(g, start, pocket))) {
+    out.path.clear();
+    return false;
+  }
   out.path = detail::astar(g, start, goal);
   return !out.path.empty();
 }
@@ -57,15 +64,24 @@ bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, 
 GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 goal, const PlannerParams& pp,
                        const RobotParams& rp) {
   const double full = rp.radius_m + pp.safety_margin_m, bare = rp.radius_m + pp.collision_margin_m;
+  // Tries, cheapest first: all obstacles with the full margin; with the bare collision margin
+  // (a gap the safety margin closes); the same on a grid twice as fine (a gap narrower than a few
+  // cells can vanish in the rasterisation); on a grid twice as large (a detour around a long wall).
+  // Then the same with static obstacles only: a path closed only by moving obstacles means "wait",
+  // not "blocked".
   GlobalPlan gp;
-  if (build_and_search(obs, false, full, start, goal, pp, gp)) return gp;
-  gp.reduced_margin = true;
-  if (build_and_search(obs, false, bare, start, goal, pp, gp)) return gp;
-  gp.only_static = true;
-  gp.reduced_margin = false;
-  if (build_and_search(obs, true, full, start, goal, pp, gp)) return gp;
-  gp.reduced_margin = true;
-  build_and_search(obs, true, bare, start, goal, pp, gp);
+  const double res = pp.grid_resolution_m;
+  for (const bool only_static : {false, true}) {
+    gp.only_static = only_static;
+    gp.reduced_margin = false;
+    const double m = pp.grid_margin_m;
+    // (the pocket test is skipped on the first try, which usually succeeds)
+    if (build_and_search(obs, only_static, full, start, goal, m, res, only_static, gp)) return gp;
+    gp.reduced_margin = true;
+    if (build_and_search(obs, only_static, bare, start, goal, m, res, true, gp)) return gp;
+    if (build_and_search(obs, only_static, bare, start, goal, m, 0.5 * res, true, gp)) return gp;
+    if (build_and_search(obs, only_static, bare, start, goal, 2.0 * m, res, true, gp)) return gp;
+  }
   return gp;
 }
 
@@ -84,37 +100,79 @@ Vec2 pick_carrot(const GlobalPlan& gp, Vec2 pos, double lookahead) {
 
 struct ArcEval {
   double t_collide = kInf;  // first time the hard margin is violated
-  double min_gap = kInf;    // smallest surface gap before that
-  Pose2D end;
+  double min_gap = kInf;    // smallest surface gap before that [m]
+  double best_d = kInf;     // closest approach to the carrot before that [m]
+  double heading_at_best = -1;   // cos of the heading error to the carrot at the closest approach
+  double heading_after_T = -1;   // ... after one control period (what the command does now)
 };
 
-// Robot along a constant (v, omega) arc (brake = true: v and omega decay at the acceleration
-// limits after the first control period, i.e. the stop the robot can always still make).
+// Robot along a constant (v, omega) arc; with brake = true, v and omega decay at the acceleration
+// limits after the first control period (the stop the robot can always still make). Positions use
+// the exact arc (integrate_pose) with the heading rotated incrementally (no trig per step).
 ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::vector<CircleObstacle>& obs,
-                 const PlannerParams& pp, const RobotParams& rp) {
+                 Vec2 carrot, const PlannerParams& pp, const RobotParams& rp) {
   ArcEval e;
-  Pose2D p = p0;
   const int steps = std::max(1, static_cast<int>(std::lround(pp.horizon_s / pp.sim_step_s)));
   const double dt = pp.horizon_s / steps;
+  double x = p0.x, y = p0.y, c = std::cos(p0.yaw), s = std::sin(p0.yaw);
   double cv = v, cw = w;
+  double rc = std::cos(cw * dt), rs = std::sin(cw * dt);
+  // cosine of the heading error; acos is taken once per arc at the end
+  auto heading_err = [&](double px, double py) {
+    const double dx = carrot.x - px, dy = carrot.y - py, d = std::sqrt(dx * dx + dy * dy);
+    return d > 1e-6 ? std::clamp((c * dx + s * dy) / d, -1.0, 1.0) : 1.0;
+  };
+  auto look = [&](double px, double py) {
+    const double dx = carrot.x - px, dy = carrot.y - py, d = std::sqrt(dx * dx + dy * dy);
+    if (d < e.best_d) {
+      e.best_d = d;
+      e.heading_at_best = heading_err(px, py);
+    }
+  };
+  look(x, y);
+  e.heading_after_T = heading_err(x, y);
+  bool after_T_set = false;
   for (int k = 1; k <= steps; ++k) {
     const double t = k * dt;
     if (brake && t > pp.control_period_s) {
       cv = std::max(0.0, cv - rp.max_accel_mps2 * dt);
       const double dw = rp.max_yaw_accel_radps2 * dt;
       cw = std::abs(cw) <= dw ? 0.0 : cw - std::copysign(dw, cw);
+      rc = std::cos(cw * dt);
+      rs = std::sin(cw * dt);
     }
-    p = integrate_pose(p, {cv, cw}, dt);
+    const double c1 = c * rc - s * rs, s1 = s * rc + c * rs;
+    if (std::abs(cw * dt) < 1e-9) {
+      x += cv * dt * c;
+      y += cv * dt * s;
+    } else {
+      const double r = cv / cw;
+      x += r * (s1 - s);
+      y -= r * (c1 - c);
+    }
+    c = c1;
+    s = s1;
+    double gap_min = kInf;
+    bool hit = false;
     for (const CircleObstacle& o : obs) {
-      const double gap = norm(p.pos() - o.at(t)) - o.r - rp.radius_m;
-      if (gap < pp.collision_margin_m) {
-        if (e.t_collide == kInf) e.t_collide = t;
-      }
-      if (e.t_collide == kInf) e.min_gap = std::min(e.min_gap, gap);
+      const double ox = o.c.x + t * o.vel.x - x, oy = o.c.y + t * o.vel.y - y;
+      const double d2 = ox * ox + oy * oy, hard = o.r + rp.radius_m + pp.collision_margin_m;
+      if (d2 < hard * hard) hit = true;
+      // only gaps below the soft range (robot radius + safety margin) enter the clearance cost
+      const double soft = o.r + 2.0 * rp.radius_m + pp.safety_margin_m;
+      if (d2 < soft * soft) gap_min = std::min(gap_min, std::sqrt(d2) - o.r - rp.radius_m);
     }
-    if (e.t_collide != kInf) break;
+    if (hit) {
+      e.t_collide = t;
+      break;
+    }
+    e.min_gap = std::min(e.min_gap, gap_min);
+    look(x, y);
+    if (!after_T_set && t >= pp.control_period_s - 1e-9) {
+      e.heading_after_T = heading_err(x, y);
+      after_T_set = true;
+    }
   }
-  e.end = p;
   return e;
 }
 
@@ -165,21 +223,23 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
     const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
     for (int iw = 0; iw < nw; ++iw) {
       const double w = wmin + (wmax - wmin) * iw / (nw - 1);
-      const ArcEval a = eval_arc(pose, v, w, false, near, pp_, rp_);
+      const ArcEval a = eval_arc(pose, v, w, false, near, out.carrot, pp_, rp_);
       double collide_pen = 0;
       if (a.t_collide != kInf) {
         // admissible only if braking from (v, w) after one control period stays clear
-        const ArcEval b = eval_arc(pose, v, w, true, near, pp_, rp_);
+        const ArcEval b = eval_arc(pose, v, w, true, near, out.carrot, pp_, rp_);
         if (b.t_collide != kInf) continue;
         collide_pen = 1.0 - a.t_collide / pp_.horizon_s;  // prefer arcs that stay clear longer
       }
-      // Evaluate the arc where it ends (or where it would hit something).
-      const Vec2 to_c = out.carrot - a.end.pos();
-      const double heading_err = norm(to_c) < 1e-6 ? 0.0 : std::abs(wrap_angle(std::atan2(to_c.y, to_c.x) - a.end.yaw));
-      const double progress = (norm(to_c) - carrot_dist0) / std::max(1e-3, rp_.max_speed_mps * pp_.horizon_s);
+      // Progress: how much closer the arc (before any contact) gets to the carrot; heading: the
+      // alignment with the carrot at that closest approach, or after one control period when the arc
+      // makes no progress (turning on the spot). Judged along the arc, not at its end, so fast arcs
+      // that pass the carrot are not punished for overshooting it.
+      const double progress = (a.best_d - carrot_dist0) / std::max(1e-3, rp_.max_speed_mps * pp_.horizon_s);
+      const double heading = std::acos(a.best_d < carrot_dist0 - 0.05 ? a.heading_at_best : a.heading_after_T);
       const double soft = pp_.safety_margin_m + rp_.radius_m;
       const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
-      const double cost = pp_.w_heading * heading_err / M_PI + pp_.w_progress * progress +
+      const double cost = pp_.w_heading * heading / M_PI + pp_.w_progress * progress +
                           pp_.w_clearance * clear_pen + pp_.w_speed * (1.0 - v / std::max(1e-6, rp_.max_speed_mps)) +
                           2.0 * collide_pen;
       if (cost < best_cost) {

@@ -88,7 +88,7 @@ TrackStats run_cv_trials(const TrackerParams& tp, double sigma, double dt, int f
     }
   }
   std::sort(verr.begin(), verr.end());
-  return {std::sqrt(se_f / np), std::sqrt(se_r / np), std::sqrt(se_v / nv), verr[verr.size() * 95 / 100], verr.back()};
+  return {std::sqrt(se_f / static_cast<double>(np)), std::sqrt(se_r / static_cast<double>(np)), std::sqrt(se_v / static_cast<double>(nv)), verr[verr.size() * 95 / 100], verr.back()};
 }
 
 TEST(Tracker, ConstantVelocityTargetsBeatRawMeasurements) {

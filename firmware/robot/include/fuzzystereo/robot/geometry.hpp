@@ -12,7 +12,9 @@ inline Vec2 operator+(Vec2 a, Vec2 b) { return {a.x + b.x, a.y + b.y}; }
 inline Vec2 operator-(Vec2 a, Vec2 b) { return {a.x - b.x, a.y - b.y}; }
 inline Vec2 operator*(double s, Vec2 a) { return {s * a.x, s * a.y}; }
 inline double dot(Vec2 a, Vec2 b) { return a.x * b.x + a.y * b.y; }
-inline double norm(Vec2 a) { return std::hypot(a.x, a.y); }
+// sqrt of the sum of squares (std::hypot's overflow care is not needed for metres and costs 5x).
+inline double norm(Vec2 a) { return std::sqrt(a.x * a.x + a.y * a.y); }
+inline double norm2(Vec2 a) { return a.x * a.x + a.y * a.y; }
 
 struct Pose2D {
   double x = 0, y = 0, yaw = 0;  // [m], [m], [rad]
