@@ -10,5 +10,6 @@ void add_match_command(CLI::App& app);  // cmd_match.cpp
 void add_fis_command(CLI::App& app);    // cmd_fis.cpp
 void add_eval_command(CLI::App& app);   // cmd_eval.cpp
 void add_bench_command(CLI::App& app);  // cmd_bench.cpp
+void add_serve_command(CLI::App& app);  // cmd_serve.cpp
 
 }  // namespace fs::app

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   fs::app::add_fis_command(app);
   fs::app::add_eval_command(app);
   fs::app::add_bench_command(app);
+  fs::app::add_serve_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
