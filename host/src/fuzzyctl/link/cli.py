@@ -50,6 +50,9 @@ def _open():
 
 
 def register(app: click.Group, config_group: click.Group, console: Console) -> None:
+    def _say(text: str) -> None:
+        console.print(text, soft_wrap=True, highlight=False)
+
     app.params += [
         click.Option(["--port"], expose_value=False, callback=_setter("port"), help="Device serial port or pty path."),
         click.Option(["--baud"], type=int, expose_value=False, callback=_setter("baud"), help="Baud rate [default 115200]."),
@@ -90,7 +93,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
         from ..config import load_config
 
         load_config(path)
-        console.print(f"{path}: OK")
+        _say(f"{path}: OK")
 
     @config_group.command("pull")
     @click.argument("file", type=click.Path(path_type=Path), required=False)
@@ -103,7 +106,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
             cid = link.info["config_id"]
         if file:
             file.write_bytes(text)
-            console.print(f"wrote {file} ({len(text)} bytes, config id {cid:08x}, {link.info['config_source']})")
+            _say(f"wrote {file} ({len(text)} bytes, config id {cid:08x}, {link.info['config_source']})")
         else:
             click.echo(text.decode("utf-8", "replace"), nl=False)
 
@@ -121,7 +124,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
         with _open() as link, Progress(console=console, transient=True, disable=not sys.stdout.isatty()) as prog:
             task = prog.add_task(f"pushing {file.name}", total=len(text))
             r = config_push(link, text, progress=lambda d, t: prog.update(task, completed=d))
-        console.print(f"pushed {file} ({r.bytes} bytes, CRC {r.crc:08x} verified by the device); "
+        _say(f"pushed {file} ({r.bytes} bytes, CRC {r.crc:08x} verified by the device); "
                       f"active config id {r.config_id:08x}")
 
     @config_group.command("diff")
@@ -143,7 +146,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
                 if dv != v:
                     diffs.append((f"{sec}.{k}", dv, v))
         if not diffs:
-            console.print(f"device config = {file} (all resolved values equal)")
+            _say(f"device config = {file} (all resolved values equal)")
             return
         t = Table(title=f"device vs {file}")
         for c in ("field", "device", str(file)):
@@ -191,15 +194,15 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
         total_new = sum(p.new_bytes for p in pulled)
         for p in pulled:
             state = "ok" if p.good else "CORRUPT"
-            console.print(f"{p.path}: {p.size} bytes ({p.new_bytes} new), {p.records} records verified, {state}"
+            _say(f"{p.path}: {p.size} bytes ({p.new_bytes} new), {p.records} records verified, {state}"
                           + (f" — {escape(p.note)}" if p.note else ""))
             if fmt != "raw":
                 parsed = parse_log(p.path.read_bytes(), link.schema)
                 conv = p.path.with_suffix("." + fmt)
                 conv.write_text(to_csv(parsed) if fmt == "csv" else to_json(parsed))
-                console.print(f"  wrote {conv}")
+                _say(f"  wrote {conv}")
         rate = total_new / dt if dt > 0 else 0.0
-        console.print(f"{total_new} bytes in {dt:.2f} s ({rate:.0f} B/s; link {opts.baud / 10:.0f} B/s); "
+        _say(f"{total_new} bytes in {dt:.2f} s ({rate:.0f} B/s; link {opts.baud / 10:.0f} B/s); "
                       f"{stats['resent']} resends")
         if any(not p.good for p in pulled):
             raise FatalError("some log files failed verification (see above)")
@@ -223,7 +226,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
 
         with _open() as link:
             paths = snapshot(link, out)
-        console.print(f"wrote {len(paths)} files to {out} (CRC-checked); compare with: fuzzyctl compare {out}")
+        _say(f"wrote {len(paths)} files to {out} (CRC-checked); compare with: fuzzyctl compare {out}")
 
     for action, doc in (("estop", "Emergency stop (sticky until clear-estop)."), ("pause", "Pause the robot."),
                         ("resume", "Resume after pause."), ("clear-estop", "Clear an e-stop.")):
@@ -234,5 +237,5 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
 
                 with _open() as link:
                     control(link, action)
-                console.print(f"{action}: acknowledged by the device")
+                _say(f"{action}: acknowledged by the device")
         make()
