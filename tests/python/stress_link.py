@@ -129,10 +129,10 @@ def run_powercut(runs: int, seed: int = 2, work: Path | None = None, log=print) 
             elif prev is not None:
                 res["old" if info["config_id"] == prev[0] else "new"] += 1
             new = random_config(rng)
-            link.chunk_max = link.chunk = 64  # many exchanges: the kill lands anywhere in the push
+            link.chunk_max = link.chunk = 32  # many exchanges: the kill lands anywhere in the push
             old_id = info["config_id"]
             prev = [old_id, crc32c(new)]
-            timer = threading.Timer(rng.uniform(0.0, 0.06), dev.kill)
+            timer = threading.Timer(rng.uniform(0.0, 0.03), dev.kill)
             timer.start()
             try:
                 config_push(link, new)
@@ -147,7 +147,7 @@ def run_powercut(runs: int, seed: int = 2, work: Path | None = None, log=print) 
     return res
 
 
-def run_throughput(baud: int, kib: int, work: Path | None = None) -> dict:
+def run_throughput(baud: int, kib: int, work: Path | None = None, window: int = 8) -> dict:
     work = Path(work or tempfile.mkdtemp(prefix="fs_link_tput_"))
     with Device(binary(), work / "state", ["--fill-log-kib", str(kib)]) as dev:
         relay = FaultRelay(dev.pty, baud=baud).start()
@@ -157,7 +157,7 @@ def run_throughput(baud: int, kib: int, work: Path | None = None) -> dict:
                 files = log_list(link)
                 big = max(files, key=lambda f: f["size"])
                 t0 = time.monotonic()
-                p = log_pull(link, work / "out", [big["id"]], window=4)[0]
+                p = log_pull(link, work / "out", [big["id"]], window=window)[0]
                 dt = time.monotonic() - t0
         finally:
             relay.stop()

@@ -1,6 +1,7 @@
 #include "fuzzystereo/link/framing.hpp"
 
 #include <array>
+#include <cstdint>
 
 namespace fs::link {
 
@@ -37,15 +38,19 @@ std::vector<std::uint8_t> cobs_encode(const std::uint8_t* data, std::size_t n) {
       code = 1;
     } else {
       out.push_back(data[i]);
-      if (++code == 0xFF) {
+      if (++code == 0xFF) {  // a full block: the next one starts only if more bytes follow
         out[code_pos] = code;
-        code_pos = out.size();
-        out.push_back(0);
         code = 1;
+        if (i + 1 < n) {
+          code_pos = out.size();
+          out.push_back(0);
+        } else {
+          code_pos = SIZE_MAX;
+        }
       }
     }
   }
-  out[code_pos] = code;
+  if (code_pos != SIZE_MAX) out[code_pos] = code;
   return out;
 }
 

@@ -178,7 +178,7 @@ def register(app: click.Group, config_group: click.Group, console: Console) -> N
     @click.option("--out", type=click.Path(path_type=Path), default=Path("logs"), show_default=True)
     @click.option("--format", "fmt", type=click.Choice(["raw", "csv", "json"]), default="raw", show_default=True,
                   help="Also write each log as CSV or JSON beside the raw file.")
-    @click.option("--window", type=click.IntRange(1, 16), default=4, show_default=True, help="Requests in flight.")
+    @click.option("--window", type=click.IntRange(1, 16), default=8, show_default=True, help="Requests in flight.")
     def logs_pull_cmd(all_: bool, out: Path, fmt: str, window: int) -> None:
         """Copy logs to OUT (resuming an interrupted pull) and verify every record."""
         from .device import log_list, log_pull

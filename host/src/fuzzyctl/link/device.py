@@ -124,7 +124,7 @@ class PulledLog:
     note: str
 
 
-def log_pull(link: Link, out_dir: Path, ids: list[int] | None = None, window: int = 4,
+def log_pull(link: Link, out_dir: Path, ids: list[int] | None = None, window: int = 8,
              progress: Callable[[int, int, int], None] | None = None) -> list[PulledLog]:
     """Copies device logs to OUT_DIR/log_<id>.fsl, resuming after the bytes already there
     (a previous, interrupted pull), then verifies every record of each file."""
