@@ -55,7 +55,7 @@ def run_faults(transfers: int, drop: float, corrupt: float, seed: int = 1, work:
     rng = random.Random(seed)
     work = Path(work or tempfile.mkdtemp(prefix="fs_link_faults_"))
     res = {"ok": 0, "clean_error": 0, "silent_corruption": 0, "errors": {}}
-    with Device(binary(), work / "state", ["--rate", "50"]) as dev:
+    with Device(binary(), work / "state", ["--rate", "50", "--fill-log-kib", "3"]) as dev:
         time.sleep(1.2)
         relay = FaultRelay(dev.pty, drop=drop, corrupt=corrupt, seed=seed).start()
         try:
@@ -76,7 +76,7 @@ def run_faults(transfers: int, drop: float, corrupt: float, seed: int = 1, work:
                     else:
                         out = work / "pulled" / str(i)
                         files = log_list(link)
-                        pulled = log_pull(link, out, [files[0]["id"]])
+                        pulled = log_pull(link, out, [files[0]["id"]])  # the 3 KiB fill file: fixed size
                         p = pulled[0]
                         dev_bytes = (dev.state_dir / "logs" / p.path.name).read_bytes()
                         mine = p.path.read_bytes()
