@@ -11,6 +11,7 @@
 #include "commands.hpp"
 #include "config.hpp"
 #include "dataset.hpp"
+#include "dump.hpp"
 #include "fuzzystereo/matcher.hpp"
 #include "io.hpp"
 #include "metrics.hpp"
@@ -27,52 +28,6 @@ struct MatchOptions {
   int threads = -1;
   bool dump = false;
 };
-
-void write_dump(const std::string& dir, const MatchOptions& o, const MatcherParams& params, const FisDefinition& fis,
-                const ImageU8& left, const ImageU8& right, const MatchResult& r) {
-  std::filesystem::create_directories(dir);
-  const std::size_t h = std::size_t(left.height), w = std::size_t(left.width);
-  write_image(dir + "/left.png", to_mat(left));
-  write_image(dir + "/right.png", to_mat(right));
-  write_npy(dir + "/labels_left.npy", r.seg_left.labels.data.data(), {h, w});
-  write_npy(dir + "/labels_right.npy", r.seg_right.labels.data.data(), {h, w});
-  auto seg_table = [](const SegmentDecision& d) {
-    std::vector<std::int32_t> t;
-    for (std::size_t s = 0; s < d.disparity.size(); ++s) {
-      t.push_back(d.disparity[s]);
-      t.push_back(static_cast<std::int32_t>(d.score[s]));
-      t.push_back(static_cast<std::int32_t>(d.dc1[s]));
-      t.push_back(static_cast<std::int32_t>(d.dc2[s]));
-      t.push_back(d.disparity_q4[s]);
-    }
-    return t;
-  };
-  const auto tl = seg_table(r.dec_left), tr = seg_table(r.dec_right);
-  write_npy(dir + "/seg_left.npy", tl.data(), {r.dec_left.disparity.size(), 5});
-  write_npy(dir + "/seg_right.npy", tr.data(), {r.dec_right.disparity.size(), 5});
-  write_npy(dir + "/disp_left_wta.npy", r.disp_left_wta.data.data(), {h, w});
-  write_npy(dir + "/disp_right_wta.npy", r.disp_right_wta.data.data(), {h, w});
-  write_npy(dir + "/lr_mask.npy", r.lr_mask.data.data(), {h, w});
-  write_npy(dir + "/disp_lr.npy", r.disp_lr.data.data(), {h, w});
-  write_npy(dir + "/esr_replaced.npy", r.esr_replaced.data.data(), {h, w});
-  write_npy(dir + "/disp_final.npy", r.disp_final.data.data(), {h, w});
-  nlohmann::json meta;
-  meta["format"] = "fuzzystereo-dump";
-  meta["version"] = 1;
-  meta["firmware_version"] = FS_VERSION;
-  meta["width"] = w;
-  meta["height"] = h;
-  meta["left"] = o.left;
-  meta["right"] = o.right;
-  meta["config_toml"] = config_to_toml(params);
-  meta["fis_name"] = fis.name;
-  nlohmann::json t;
-  for (int i = 0; i < static_cast<int>(Stage::Count); ++i) t[stage_name(Stage(i))] = r.timings.ms[std::size_t(i)];
-  meta["timings_ms"] = t;
-  std::ofstream f(dir + "/meta.json");
-  f << meta.dump(2) << "\n";
-  if (!f) throw UserError("cannot write '" + dir + "/meta.json'");
-}
 
 void run_match(const MatchOptions& o) {
   MatcherParams params = load_matcher_config(o.config);
@@ -113,7 +68,7 @@ void run_match(const MatchOptions& o) {
   write_disp_kitti(o.out + "/disp_right.png", dr);
   write_image(o.out + "/disp_left_color.png", colorize_disparity(dl, params.cost.max_disparity));
   write_image(o.out + "/disp_right_color.png", colorize_disparity(dr, params.cost.max_disparity));
-  if (o.dump) write_dump(o.out + "/dump", o, params, fis, left, right, r);
+  if (o.dump) write_match_dump(o.out + "/dump", o.left, o.right, params, fis, left, right, r);
 
   std::printf("fuzzystereo match: %dx%d, D=%d, %d + %d segments, FIS LUT %dx%d built in %.1f ms\n", left.width,
               left.height, params.cost.max_disparity, r.seg_left.count, r.seg_right.count, params.fis.lut_size,

@@ -172,6 +172,13 @@ def config_schema() -> None:
     console.print(table)
 
 
+# ---- serial link (fuzzyctl --port PORT ...): fuzzyctl/link/cli.py ----------------------------
+
+from .link.cli import register as _register_link  # noqa: E402
+
+_register_link(app, config_group, console)
+
+
 # ---- reference ------------------------------------------------------------------------------
 
 
