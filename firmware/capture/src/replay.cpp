@@ -157,7 +157,9 @@ cv::Mat read_8bit(const std::string& path) {
 
 }  // namespace
 
-std::vector<PairPaths> discover_image_sequence(const std::string& dir_text) {
+namespace {
+
+std::vector<PairPaths> discover(const std::string& dir_text) {
   const stdfs::path dir(dir_text);
   std::error_code ec;
   if (!stdfs::is_directory(dir, ec)) throw CaptureError("replay: '" + dir_text + "' is not a directory");
@@ -176,6 +178,16 @@ std::vector<PairPaths> discover_image_sequence(const std::string& dir_text) {
     return natural_less(stdfs::path(a.left).filename().string(), stdfs::path(b.left).filename().string());
   });
   return pairs;
+}
+
+}  // namespace
+
+std::vector<PairPaths> discover_image_sequence(const std::string& dir) {
+  try {
+    return discover(dir);
+  } catch (const stdfs::filesystem_error& e) {  // e.g. a sub-folder without read permission
+    throw CaptureError("replay: cannot list '" + e.path1().string() + "': " + e.code().message());
+  }
 }
 
 ReplayCamera::ReplayCamera(std::string source, std::vector<PairPaths> pairs, ReplayOptions opt, Clock clock)

@@ -300,7 +300,8 @@ TEST(CaptureReplay, BadSequencesNameTheFile) {
 
   // Unreadable image: grab names it.
   std::ofstream(d.path() / "right" / "0.png") << "not a png";
-  ReplayCamera cam("r", discover_image_sequence(d.path().string()), {}, FakeClock().clock());
+  FakeClock fc;  // outlives the camera (its clock refers to it)
+  ReplayCamera cam("r", discover_image_sequence(d.path().string()), {}, fc.clock());
   cam.start();
   StereoFrame f;
   EXPECT_NE(error_of([&] { cam.grab(f); }).find("right/0.png"), std::string::npos);
