@@ -17,7 +17,14 @@
 #include "fuzzystereo/robot/motors.hpp"
 #include "fuzzystereo/sim/scene.hpp"
 #include "io.hpp"
+#include "dump.hpp"
+#include "fuzzystereo/link/device_server.hpp"
+#include "fuzzystereo/link/port.hpp"
+#include "fuzzystereo/robot/failsafe.hpp"
 #include "robot_loop.hpp"
+
+#include <condition_variable>
+#include <filesystem>
 
 namespace fs::app {
 
@@ -53,11 +60,123 @@ struct RunOptions {
   int max_frames = 0, snapshot_every = 10, stall_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
   bool realtime = false, quiet = false;
+  // Serial link (docs/protocol.md): device services next to the loop.
+  std::string link, state_dir, pty_link;
+  int baud = 115200;
+};
+
+// Telemetry message of one logged frame (robot_loop.cpp writes the JSON).
+link::msg::Telemetry telemetry_of(const json& f, const std::string& source, std::uint32_t uptime_ms) {
+  link::msg::Telemetry t;
+  t.frame_id = f.value("frame", 0u);
+  t.t_ms = uptime_ms;
+  t.source = source;
+  double total = 0;
+  for (auto it = f["stage_ms"].begin(); it != f["stage_ms"].end(); ++it) {
+    t.stages.push_back({it.key(), it.value().get<float>()});
+    if (it.key() == "total") total = it.value().get<double>();
+  }
+  t.fps = total > 0 ? static_cast<float>(1000.0 / total) : 0.0f;
+  int id = 0;
+  for (const auto& d : f["detections"]) {
+    if (t.obstacles.size() >= 32) break;
+    link::msg::Obstacle o;
+    o.track_id = static_cast<std::uint16_t>(id++);
+    const std::string cls = d.value("class", "mid");
+    o.cls = cls == "near" ? 0 : cls == "mid" ? 1 : 2;
+    o.distance_m = d.value("distance_m", 0.0f);
+    o.lateral_m = d.value("lateral_m", 0.0f);
+    o.width_m = d.value("width_m", 0.0f);
+    t.obstacles.push_back(o);
+  }
+  t.cmd_v_mps = f["cmd"][0].get<float>();
+  t.cmd_w_radps = f["cmd"][1].get<float>();
+  t.motor_left = f["wheels"][0].get<float>();
+  t.motor_right = f["wheels"][1].get<float>();
+  t.pose_x_m = f["pose"][0].get<float>();
+  t.pose_y_m = f["pose"][1].get<float>();
+  t.pose_yaw_deg = static_cast<float>(f["pose"][2].get<double>() * 180.0 / M_PI);
+  return t;
+}
+
+// A snapshot asked for by the link thread, written by the loop after its next match.
+struct SnapshotRequest {
+  std::mutex m;
+  std::condition_variable cv;
+  bool wanted = false, ready = false;
+  std::string error;
+  std::vector<link::SnapshotFile> files;
 };
 
 void run_run(const RunOptions& o) {
-  const Config cfg = load_config(o.config);
+  Config cfg = load_config(o.config);
   LoopOptions lo;
+  // ---- serial link: the config store owns the active config ----
+  std::unique_ptr<link::DeviceServer> server;
+  SnapshotRequest snap;
+  std::mutex cfg_mu;
+  bool have_store_cfg = false;
+  if (!o.link.empty()) {
+    if (o.state_dir.empty()) throw UserError("--link needs --state-dir DIR (config store and logs)");
+    if (!o.config.empty())
+      throw UserError("--config cannot be used with --link: the config store in --state-dir holds the active config "
+                      "(push one with `fuzzyctl --port PORT config push FILE`)");
+    link::DeviceHooks hooks;
+    hooks.config_applied = [&](const Config& c) {
+      std::lock_guard<std::mutex> g(cfg_mu);
+      if (!have_store_cfg) cfg = c;  // startup config; later pushes take effect at the next start
+      have_store_cfg = true;
+    };
+    hooks.control = [](link::msg::ControlAction a) {
+      std::fprintf(stderr, "link: control %s\n", link::msg::to_string(a));
+    };
+    const std::filesystem::path tmp = std::filesystem::path(o.state_dir) / "snapshot.tmp";
+    hooks.snapshot = [&snap] {
+      std::unique_lock<std::mutex> l(snap.m);
+      snap.wanted = true;
+      snap.ready = false;
+      if (!snap.cv.wait_for(l, std::chrono::seconds(10), [&] { return snap.ready; }))
+        throw std::runtime_error("no frame within 10 s (is the loop paused at the end of its run?)");
+      if (!snap.error.empty()) throw std::runtime_error(snap.error);
+      return std::move(snap.files);
+    };
+    link::ServerOptions so;
+    so.link = o.link;
+    so.baud = o.baud;
+    so.state_dir = o.state_dir;
+    so.pty_link_file = o.pty_link;
+    so.fw_version = FS_VERSION;
+    server = std::make_unique<link::DeviceServer>(hooks, so);
+    try {
+      server->start();
+    } catch (const link::PortError& e) {
+      throw UserError(e.what());
+    }
+    lo.hold = [&server] { return server->state() != link::msg::RunState::RUNNING; };
+    lo.on_frame = [&server, &o](const json& f) { server->publish(telemetry_of(f, o.source, server->uptime_ms())); };
+    lo.on_match = [&snap, &cfg, tmp](const ImageU8& l, const ImageU8& r, const MatchResult& m) {
+      std::lock_guard<std::mutex> g(snap.m);
+      if (!snap.wanted) return;
+      snap.wanted = false;
+      try {
+        std::filesystem::remove_all(tmp);
+        write_match_dump(tmp.string(), "run:left", "run:right", cfg.matcher, load_fis_definition(""), l, r, m);
+        snap.files.clear();
+        for (const auto& ent : std::filesystem::directory_iterator(tmp)) {
+          const std::string t = link::read_file_text(ent.path());
+          snap.files.push_back({ent.path().filename().string(), std::vector<std::uint8_t>(t.begin(), t.end())});
+        }
+        std::sort(snap.files.begin(), snap.files.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
+        snap.error.clear();
+      } catch (const std::exception& ex) {
+        snap.error = ex.what();
+      }
+      snap.ready = true;
+      snap.cv.notify_all();
+    };
+    // Over a link the simulator runs at wall-clock pace, so telemetry and commands mean something.
+    lo.realtime = o.source.rfind("sim", 0) == 0;
+  }
   lo.source = o.source;
   lo.motors = o.motors;
   if (!o.goal.empty()) lo.goal = parse_goal(o.goal);
@@ -68,7 +187,7 @@ void run_run(const RunOptions& o) {
   lo.stall_ms = o.stall_ms;
   lo.sim_latency_ms = o.latency_ms;
   lo.time_limit_s = o.time_limit;
-  lo.realtime = o.realtime;
+  lo.realtime = lo.realtime || o.realtime;
   lo.quiet = o.quiet;
   LoopResult r;
   try {
@@ -78,6 +197,29 @@ void run_run(const RunOptions& o) {
     throw UserError(e.what());
   }
   print_result(r);
+  std::fflush(stdout);
+  if (server) {
+    // The run is over (goal, stop, end of stream): the motors are stopped; keep the link up for
+    // logs and config until SIGINT/SIGTERM.
+    std::fprintf(stderr, "run: %s; link stays up until SIGINT/SIGTERM\n", r.status.c_str());
+    while (!robot::stop_requested()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      link::msg::Telemetry t;
+      t.source = o.source + " (finished: " + r.status + ")";
+      t.t_ms = server->uptime_ms();
+      server->publish(t);
+      {
+        std::lock_guard<std::mutex> g(snap.m);
+        if (snap.wanted) {
+          snap.wanted = false;
+          snap.error = "the run has finished (" + r.status + "): no current frame";
+          snap.ready = true;
+          snap.cv.notify_all();
+        }
+      }
+    }
+    server->stop();
+  }
   if (!o.json_out.empty()) {
     json j = r.to_json();
     json st;
@@ -256,6 +398,10 @@ void add_run_command(CLI::App& app) {
   c->add_flag("--realtime", o->realtime, "Simulator: pace frames on the wall clock");
   c->add_flag("--quiet", o->quiet, "No per-frame line on stderr");
   c->add_option("--json", o->json_out, "Write the result as JSON");
+  c->add_option("--link", o->link, "Serial link: 'pty' (create and announce a pseudo-terminal) or a device, e.g. /dev/ttyAMA0");
+  c->add_option("--baud", o->baud, "Serial baud rate")->capture_default_str();
+  c->add_option("--state-dir", o->state_dir, "With --link: directory of the config store and the logs");
+  c->add_option("--pty-link", o->pty_link, "With --link pty: also write the pty path to this file");
   c->callback([o] { run_run(*o); });
 }
 

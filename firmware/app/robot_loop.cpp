@@ -400,6 +400,7 @@ LoopResult RobotLoop::run() {
     auto s1 = std::chrono::steady_clock::now();
     const MatchResult mr = matcher.match(gl, gr);
     stage_ms["match"].push_back(wall_ms_since(s1));
+    if (opt.on_match) opt.on_match(gl, gr, mr);
 
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
@@ -433,6 +434,12 @@ LoopResult RobotLoop::run() {
     if (plan.status == robot::PlanStatus::kReached || plan.status == robot::PlanStatus::kBlocked) want = {};
     want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;
+    const bool held = opt.hold && opt.hold();
+    if (held) {
+      want = {};
+      mixer.reset();
+      I.motors->stop();
+    }
     const robot::WheelCommand wc = mixer.mix(want, I.pp.control_period_s);
     stage_ms["plan"].push_back(wall_ms_since(s1));
     const double frame_ms = wall_ms_since(w0);
@@ -502,7 +509,7 @@ LoopResult RobotLoop::run() {
             {"pose", {pose.x, pose.y, pose.yaw}},
             {"cmd", {applied.v, applied.omega}},
             {"wheels", {wc.left, wc.right}},
-            {"status", robot::to_string(plan.status)},
+            {"status", held ? "held" : robot::to_string(plan.status)},
             {"front_stop", ahead}};
     if (I.world) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
     json dets = json::array();
@@ -510,6 +517,7 @@ LoopResult RobotLoop::run() {
       dets.push_back({{"box", {o.x0, o.y0, o.x1, o.y1}},
                       {"distance_m", o.distance_m},
                       {"lateral_m", o.lateral_m},
+                      {"width_m", (o.x1 - o.x0 + 1) * o.distance_m / I.calib.focal_px},
                       {"class", obstacle_class_name(o.cls)},
                       {"pixels", o.pixel_count}});
     fj["detections"] = std::move(dets);

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "config.hpp"
+#include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/robot/geometry.hpp"
 #include "fuzzystereo/sim/scene.hpp"
 
@@ -40,6 +41,10 @@ struct LoopOptions {
   double stall_ms = 0;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
+  // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
+  std::function<void(const ImageU8& left, const ImageU8& right, const MatchResult& r)> on_match;
+  // While this returns true (link e-stop / pause) the motors stay stopped and no plan is made.
+  std::function<bool()> hold;
 };
 
 struct StageStat {

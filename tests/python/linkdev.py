@@ -1,4 +1,5 @@
-"""Helpers for the link tests: run the real firmware's `serve --link pty` and the fuzzyctl CLI."""
+"""Helpers for the link tests: run the real firmware (`run` with the simulator source and sim motors,
+or the standalone `serve`) on a pseudo-terminal, and the fuzzyctl CLI."""
 
 from __future__ import annotations
 
@@ -9,11 +10,19 @@ import time
 from pathlib import Path
 
 
-class Device:
-    """`fuzzystereo serve --link pty` in the background; .pty is the path the host opens."""
+#: The scene the `run` device drives (obstacles off a long straight path: it runs for minutes).
+STRAIGHT_SCENE = Path(__file__).resolve().parents[2] / "common" / "sim" / "scenes" / "straight.toml"
 
-    def __init__(self, binary: Path, state_dir: Path, extra: list[str] | None = None):
-        self.binary, self.state_dir, self.extra = binary, state_dir, extra or []
+
+class Device:
+    """The firmware with its serial link on a pty, in the background; .pty is the path the host opens.
+
+    mode "run": ``fuzzystereo run --source sim:SCENE --motors sim --link pty`` (the robot loop on the
+    simulator, paced at wall-clock speed); mode "serve": the standalone device services.
+    """
+
+    def __init__(self, binary: Path, state_dir: Path, extra: list[str] | None = None, mode: str = "serve"):
+        self.binary, self.state_dir, self.extra, self.mode = binary, state_dir, extra or [], mode
         self.proc: subprocess.Popen | None = None
         self.pty = ""
 
@@ -23,15 +32,19 @@ class Device:
             link_file.unlink()
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.out = open(self.state_dir.parent / f"{self.state_dir.name}.out", "ab")
-        self.proc = subprocess.Popen([str(self.binary), "serve", "--link", "pty", "--state-dir", str(self.state_dir),
+        if self.mode == "run":
+            head = [str(self.binary), "run", "--source", f"sim:{STRAIGHT_SCENE}", "--motors", "sim", "--quiet"]
+        else:
+            head = [str(self.binary), "serve"]
+        self.proc = subprocess.Popen([*head, "--link", "pty", "--state-dir", str(self.state_dir),
                                       "--pty-link", str(link_file), *self.extra],
                                      stdout=self.out, stderr=subprocess.STDOUT)
         t0 = time.monotonic()
         while not link_file.exists():
             if self.proc.poll() is not None:
-                raise RuntimeError(f"serve exited with {self.proc.returncode}: {self.output()}")
+                raise RuntimeError(f"{self.mode} exited with {self.proc.returncode}: {self.output()}")
             if time.monotonic() - t0 > timeout:
-                raise RuntimeError("serve did not announce its pty")
+                raise RuntimeError(f"{self.mode} did not announce its pty")
             time.sleep(0.01)
         self.pty = link_file.read_text().strip()
         return self

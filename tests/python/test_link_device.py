@@ -1,4 +1,5 @@
-"""Every `fuzzyctl --port` command against the real firmware binary (`fuzzystereo serve --link pty`)."""
+"""Every `fuzzyctl --port` command against the real firmware binary: `fuzzystereo run` on the
+simulator source with sim motors and its serial link on a pseudo-terminal."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ pytestmark = pytest.mark.firmware
 
 @pytest.fixture()
 def device(firmware_bin, tmp_path):
-    d = Device(firmware_bin, tmp_path / "state", ["--rate", "20"])
+    d = Device(firmware_bin, tmp_path / "state", mode="run")
     d.start()
     yield d
     d.stop()
@@ -92,12 +93,12 @@ def test_logs_list_pull_resume_and_convert(device, tmp_path):
 
 
 def test_monitor_plain_lines(device):
-    out = ok("--port", device.pty, "monitor", "--count", "3", "--interval", "0.1")
+    out = ok("--port", device.pty, "monitor", "--count", "3", "--interval", "0.6")
     lines = [ln for ln in out.splitlines() if ln.startswith("frame ")]
     assert len(lines) == 3
     ids = [int(ln.split()[1]) for ln in lines]
     assert ids[0] < ids[-1]  # frames advance
-    assert "idle stand-in" in lines[0] and "obstacles 0" in lines[0]
+    assert "sim:" in lines[-1] and "straight.toml" in lines[-1]  # the robot loop's telemetry
 
 
 def test_estop_pause_resume(device):
