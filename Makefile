@@ -6,7 +6,8 @@
 #   make test           deps, native build + ctest, pytest (tests/python), aarch64 build + ctest
 #                       under qemu; runs every stage and exits non-zero if any failed
 #   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
-#   make demo           deps, build, then match the OpenCV "aloe" pair into out/demo
+#   make demo           deps, build, then the closed-loop simulator run -> out/demo/report.html
+#   make demo-match     the matcher alone on the OpenCV "aloe" pair -> out/demo-match
 #   make clean          remove build/ and out/   (make distclean also removes .venv)
 
 SHELL := /bin/bash
@@ -25,7 +26,7 @@ APT_PACKAGES := build-essential cmake ninja-build pkg-config \
   libopencv-dev opencv-doc libeigen3-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev \
   libgtest-dev googletest libbenchmark-dev libgpiod-dev libcamera-dev \
   python3-venv python3-dev \
-  g++-aarch64-linux-gnu qemu-user libgtest-dev:arm64 libtomlplusplus-dev:arm64
+  g++-aarch64-linux-gnu qemu-user libgtest-dev:arm64 libtomlplusplus-dev:arm64 libgpiod-dev:arm64
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
 PYTHON3 ?= python3
@@ -114,25 +115,36 @@ test-asan-core:
 	build/asan/tests/cpp/fs_core_tests
 
 # ---- demo ----------------------------------------------------------------------------------------
-# OpenCV's sample pair (opencv-doc). Debian may ship some of these files gzipped: those are
-# unpacked to out/demo/input first.
-DEMO_DATA ?= /usr/share/doc/opencv-doc/examples/data
+# The closed-loop run: the robot drives common/sim/scenes/demo.toml in the simulator from start to
+# goal; out/demo/report.html shows the trajectory, annotated frames and stage timings.
 DEMO_OUT := out/demo
+DEMO_SCENE ?= common/sim/scenes/demo.toml
 
-.PHONY: demo
+.PHONY: demo demo-match
 demo: deps build
-	@mkdir -p $(DEMO_OUT); \
+	@rm -rf $(DEMO_OUT)/run; mkdir -p $(DEMO_OUT); set -x; \
+	build/default/fuzzystereo run --source sim:$(DEMO_SCENE) --motors sim --record $(DEMO_OUT)/run \
+	  --snapshot-every 5 --quiet --json $(DEMO_OUT)/result.json; \
+	$(VENV)/bin/fuzzyctl report $(DEMO_OUT)/run --out $(DEMO_OUT)/report.html
+
+# The matcher alone on OpenCV's sample pair (opencv-doc). Debian may ship some of these files
+# gzipped: those are unpacked to out/demo-match/input first.
+DEMO_DATA ?= /usr/share/doc/opencv-doc/examples/data
+DEMO_MATCH_OUT := out/demo-match
+
+demo-match: deps build
+	@mkdir -p $(DEMO_MATCH_OUT); \
 	demo_file() { \
 	  if [ -f "$(DEMO_DATA)/$$1" ]; then echo "$(DEMO_DATA)/$$1"; \
 	  elif [ -f "$(DEMO_DATA)/$$1.gz" ]; then \
-	    mkdir -p $(DEMO_OUT)/input; gunzip -c "$(DEMO_DATA)/$$1.gz" > "$(DEMO_OUT)/input/$$1"; \
-	    echo "$(DEMO_OUT)/input/$$1"; \
+	    mkdir -p $(DEMO_MATCH_OUT)/input; gunzip -c "$(DEMO_DATA)/$$1.gz" > "$(DEMO_MATCH_OUT)/input/$$1"; \
+	    echo "$(DEMO_MATCH_OUT)/input/$$1"; \
 	  else echo "demo: $(DEMO_DATA)/$$1 not found (apt package opencv-doc)" >&2; exit 1; fi; \
 	}; \
 	left=$$(demo_file aloeL.jpg); right=$$(demo_file aloeR.jpg); gt=$$(demo_file aloeGT.png); \
 	set -x; \
 	build/default/fuzzystereo match --left "$$left" --right "$$right" --gt "$$gt" \
-	  --downscale 3 --max-disparity 80 --out $(DEMO_OUT) --dump
+	  --downscale 3 --max-disparity 80 --out $(DEMO_MATCH_OUT) --dump
 
 # ---- housekeeping --------------------------------------------------------------------------------
 .PHONY: clean distclean

@@ -123,12 +123,26 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
         ax.plot(start[0], start[1], "o", color="tab:green", ms=9, label="start")
     if goal:
         ax.plot(goal[0], goal[1], "*", color="tab:red", ms=14, label="goal")
+    # View: start, goal, the robot's path and the world's obstacles, plus a margin. Tracks that
+    # coasted far away (a spurious velocity estimate out of view) must not shrink the picture.
+    xs = [p[0] for p in ([start] if start else []) + ([goal] if goal else [])]
+    ys = [p[1] for p in ([start] if start else []) + ([goal] if goal else [])]
+    for f in frames:
+        p = f.get("true_pose", f["pose"])
+        xs.append(p[0])
+        ys.append(p[1])
+    for o in run.get("world", {}).get("obstacles", []):
+        xs.append(o.get("x", 0.0))
+        ys.append(o.get("y", 0.0))
+    if xs:
+        m = 1.0
+        ax.set_xlim(min(xs) - m, max(xs) + m)
+        ax.set_ylim(min(ys) - m, max(ys) + m)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m] (forward)")
     ax.set_ylabel("y [m] (left)")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    ax.autoscale_view()
     status = run.get("result", {}).get("status", "?")
     ax.set_title(f"{run.get('scenario', '')}  —  {status}")
     return fig
