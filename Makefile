@@ -107,12 +107,14 @@ test-aarch64: build-aarch64
 test-asan: deps build-asan
 	ctest --preset asan -j $(NPROC)
 
-# Core unit tests under AddressSanitizer + UBSan (part of `make test`; the full asan preset is
-# `make test-asan`).
+# Under AddressSanitizer + UBSan (part of `make test`; the full asan preset is `make test-asan`):
+# the core unit tests, the link unit tests and 200k iterations of the link decoder fuzz driver.
 test-asan-core:
 	cmake --preset asan
-	cmake --build --preset asan -j $(NPROC) --target fs_core_tests
+	cmake --build --preset asan -j $(NPROC) --target fs_core_tests fs_link_tests fs_link_fuzz
 	build/asan/tests/cpp/fs_core_tests
+	build/asan/tests/cpp/fs_link_tests
+	build/asan/tests/cpp/fs_link_fuzz 200000 11
 
 # ---- demo ----------------------------------------------------------------------------------------
 # The closed-loop run: the robot drives common/sim/scenes/demo.toml in the simulator from start to
