@@ -47,7 +47,7 @@ void print_result(const LoopResult& r) {
   std::printf("front stops %d  blocked frames %d  watchdog trips %d  %.1f frames/s of processing\n", r.front_stops,
               r.blocked_frames, r.watchdog_trips, r.fps_wall);
   if (r.watchdog_stop_after_last_plan_ms >= 0)
-    std::printf("watchdog (sim clock): stop commanded %.0f ms after the last plan, %.0f ms after the missed frame deadline\n",
+    std::printf("watchdog (sim clock): stop commanded %.0f ms after the last plan, %.0f ms after the stall began (the frame that never came)\n",
                 r.watchdog_stop_after_last_plan_ms, r.watchdog_stop_after_deadline_ms);
   if (r.watchdog_stop_wall_ms >= 0)
     std::printf("watchdog (wall clock): stop commanded %.1f ms after the last plan\n", r.watchdog_stop_wall_ms);

@@ -63,7 +63,7 @@ struct LoopResult {
   int blocked_frames = 0;   // frames where the planner found no path
   int watchdog_trips = 0;
   double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan
-  double watchdog_stop_after_deadline_ms = -1;   // ... after the missed frame deadline
+  double watchdog_stop_after_deadline_ms = -1;   // ... after the stall began (the frame that was due)
   double watchdog_stop_wall_ms = -1;             // ... wall-clock watchdog thread (real sleep)
   double fps_wall = 0;      // frames per wall-clock second of processing
   std::vector<std::pair<std::string, StageStat>> stages;
