@@ -115,6 +115,13 @@ def test_generate_layout_reproduce_and_eval(firmware_bin, tmp_path):
         max_gt = max(max_gt, disp.max() / 256.0)
     md = marker["max_disparity"]
     assert md % 16 == 0 and md - 16 <= max_gt < md
+    # The host finds the set like the firmware: set "synthetic", the marker's search range, GT present.
+    from fuzzyctl.dataset import discover
+
+    for root in (out, tr, tmp_path):
+        frames = discover(root)
+        assert [f.name for f in frames] == ["000000", "000001", "000002"]
+        assert all(f.set == "synthetic" and f.max_disparity == md and f.has_gt for f in frames)
     # The written scene reproduces its frame bit-identically.
     r = run(firmware_bin, "sim", "render", str(tr / "scenes" / "000001.toml"), "--out", str(tmp_path / "re"))
     assert r.returncode == 0, r.stderr

@@ -6,6 +6,7 @@ same ground truth as ``fuzzystereo eval``. Layouts (official archive folder name
 
   KITTI 2012         training/{colored_0,colored_1 | image_0,image_1}/NNNNNN_10.png, disp_occ/
   KITTI 2015         training/{image_2,image_3}/NNNNNN_10.png, disp_occ_0/
+  synthetic          fuzzystereo_sim.json + training/ in the KITTI 2015 layout (sim generate)
   Middlebury 2001-3  <scene>/{im3,im4}.png + disp3.pgm (/16, tsukuba); {im2,im6}.png + disp2.pgm
                      (/8, venus); {im2,im6}.png + disp2.png (/4, teddy, cones)
   Middlebury 2005-6  {ThirdSize,HalfSize,FullSize}/<scene>/{view1,view5}.png + disp1.png
@@ -43,7 +44,8 @@ LAYOUTS_LOOKED_FOR = (
     "KITTI 2015 (image_2, image_3, disp_occ_0), "
     "Middlebury 2001-3 (im3/im4 + disp3.pgm, im2/im6 + disp2.pgm|disp2.png), "
     "Middlebury 2005-6 ({ThirdSize,HalfSize,FullSize}/<scene>/view1, view5, disp1.png), "
-    "Middlebury 2014 (MiddEval3/training{Q,H,F}/<scene>/im0, im1, calib.txt, disp0GT.pfm)"
+    "Middlebury 2014 (MiddEval3/training{Q,H,F}/<scene>/im0, im1, calib.txt, disp0GT.pfm), "
+    "synthetic (fuzzystereo_sim.json + training/image_2, image_3, disp_occ_0)"
 )
 
 MAX_SCAN_DEPTH = 6
@@ -184,7 +186,31 @@ def _detect_middlebury2014(d: Path) -> list[Frame] | None:
                   GT_PFM if has else GT_NONE, 1.0, round_up_16(ndisp))]
 
 
-_DETECTORS = (_detect_kitti2015, _detect_kitti2012, _detect_middlebury2014, _detect_middlebury2005_6, _detect_middlebury2001_3)
+SIM_MARKER = "fuzzystereo_sim.json"
+
+
+def _detect_synthetic(d: Path) -> list[Frame] | None:
+    """A set written by ``fuzzystereo sim generate``: ``d`` holds the marker (frames in its
+    training/, KITTI 2015 layout) or ``d`` is that training/ folder (firmware dataset.cpp)."""
+    import dataclasses
+    import json
+
+    marker, training = d / SIM_MARKER, d / "training"
+    if not marker.is_file() and d.name == "training" and (d.parent / SIM_MARKER).is_file():
+        marker, training = d.parent / SIM_MARKER, d
+    if not marker.is_file():
+        return None
+    try:
+        max_disp = int(json.loads(marker.read_text())["max_disparity"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise FatalError(f"synthetic set marker '{marker}' is not valid: {exc}") from exc
+    if max_disp < 16 or max_disp % 16:
+        raise FatalError(f"synthetic set marker '{marker}': max_disparity = {max_disp} is not valid (a multiple of 16, >= 16)")
+    frames = _detect_kitti2015(training) or []
+    return [dataclasses.replace(f, set="synthetic", max_disparity=max_disp) for f in frames]
+
+
+_DETECTORS = (_detect_synthetic, _detect_kitti2015, _detect_kitti2012, _detect_middlebury2014, _detect_middlebury2005_6, _detect_middlebury2001_3)
 
 
 def _scan(d: Path, depth: int, out: list[Frame]) -> None:
