@@ -6,6 +6,8 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.hpp"
+#include "fuzzystereo/capture/camera.hpp"
+#include "fuzzystereo/robot/motors.hpp"
 #include "config.hpp"
 #include "io.hpp"
 
@@ -32,6 +34,12 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const fs::ConfigError& e) {
     std::fprintf(stderr, "fuzzystereo: config error: %s\n", e.what());
+    return 2;
+  } catch (const fs::capture::CaptureError& e) {  // camera missing / busy / no permission / bad source
+    std::fprintf(stderr, "fuzzystereo: camera error: %s\n", e.what());
+    return 2;
+  } catch (const fs::robot::HardwareError& e) {  // GPIO chip / PWM channel missing or not permitted
+    std::fprintf(stderr, "fuzzystereo: hardware error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fuzzystereo: internal error: %s\n", e.what());

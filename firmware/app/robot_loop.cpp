@@ -12,9 +12,11 @@
 #include <random>
 #include <thread>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "camera_source.hpp"
+#include "dataset.hpp"
 #include "detect_config.hpp"
 #include "detect_io.hpp"
 #include "fuzzystereo/capture/rectifier.hpp"
@@ -227,6 +229,21 @@ LoopResult RobotLoop::run() {
       I.calib = I.rectifier.calib();
     }
     I.camera->start();
+    if (!I.calib.valid() && opt.source.rfind("replay:", 0) == 0) {
+      // A stereo dataset (KITTI, Middlebury) carries its own calibration of the rectified pair.
+      try {
+        const auto frames = discover_dataset(opt.source.substr(7));
+        if (!frames.empty() && frames.front().calib.valid) {
+          const cv::Mat l = read_image(frames.front().left_path, cv::IMREAD_GRAYSCALE);
+          I.calib.focal_px = frames.front().calib.focal_px;
+          I.calib.baseline_m = frames.front().calib.baseline_m;
+          I.calib.cx = 0.5 * (l.cols - 1);
+          I.calib.cy = 0.5 * (l.rows - 1);
+        }
+      } catch (const UserError&) {
+        // an image sequence, not a dataset: the calibration must come from [camera] calibration
+      }
+    }
   }
   if (opt.goal) {
     goal = *opt.goal;
