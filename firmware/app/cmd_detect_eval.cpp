@@ -229,9 +229,13 @@ void run_detect_eval(const EvalOptions& o) {
     const StereoCalib calib = calib_from_json(g, (tr / "sim_gt" / (s + ".json")).string());
     std::vector<GtObstacle> gt;
     for (const auto& ob : g.value("obstacles", nlohmann::json::array())) {
+      // An obstacle outside the view (or fully hidden) has box null and 0 visible pixels: it is not
+      // part of this frame's ground truth at all (not even don't care).
+      if (!ob.contains("box") || ob.at("box").is_null()) continue;
       GtObstacle x;
       x.id = ob.value("id", 0);
-      const auto b = ob.at("box");
+      const auto& b = ob.at("box");
+      if (!b.is_array() || b.size() != 4) throw UserError("frame " + s + ": obstacle box is not [x0, y0, x1, y1]");
       x.box = {b[0].get<int>(), b[1].get<int>(), b[2].get<int>(), b[3].get<int>()};
       x.distance_m = ob.at("distance_m").get<double>();
       x.visible = ob.value("visible_pixels", 0);
