@@ -43,6 +43,7 @@ struct GtObstacle {
   std::array<int, 4> box{};
   double distance_m = 0;
   int visible = 0;
+  bool truncated = false;
 };
 
 struct Tally {
@@ -51,6 +52,8 @@ struct Tally {
   std::vector<double> rel_err;
   std::array<double, int(Stage::Count)> match_ms{};
   std::array<double, int(DetectStage::Count)> detect_ms{};
+  nlohmann::json missed = nlohmann::json::array();  // per frame only: cared GT obstacles not detected
+  nlohmann::json false_pos = nlohmann::json::array();  // per frame only: unmatched detections
 
   void add(const Tally& o) {
     frames += o.frames, gt += o.gt, dont_care += o.dont_care, detected += o.detected, detected_box += o.detected_box;
@@ -127,7 +130,12 @@ Tally score_frame(const std::vector<GtObstacle>& gt, const DetectResult& r, cons
   // Pass 2: a detection on a don't-care obstacle's box is not a false positive, whatever its distance.
   for (const Pair& p : pairs)
     if (!care(gt[p.g]) && !det_used[p.d]) det_used[p.d] = true;
-  for (bool u : det_used) t.fp += !u;
+  for (std::size_t d = 0; d < r.obstacles.size(); ++d)
+    if (!det_used[d]) {
+      ++t.fp;
+      const Obstacle& x = r.obstacles[d];
+      t.false_pos.push_back({{"box", {x.x0, x.y0, x.x1, x.y1}}, {"distance_m", x.distance_m}, {"pixels", x.pixel_count}});
+    }
   for (std::size_t g = 0; g < gt.size(); ++g) {
     if (!care(gt[g])) {
       ++t.dont_care;
@@ -144,6 +152,20 @@ Tally score_frame(const std::vector<GtObstacle>& gt, const DetectResult& r, cons
     if (bd) {
       ++t.detected_box;
       t.rel_err.push_back(rel(gt[g], *bd));
+    }
+    if (!gt_used[g]) {
+      // What the nearest miss looked like: the detection with the largest IoU (any IoU).
+      double bi = 0;
+      const Obstacle* bo = nullptr;
+      for (const Obstacle& d : r.obstacles)
+        if (const double v = iou(gt[g].box, d); v > bi) bi = v, bo = &d;
+      t.missed.push_back({{"id", gt[g].id},
+                          {"box", gt[g].box},
+                          {"distance_m", gt[g].distance_m},
+                          {"visible_pixels", gt[g].visible},
+                          {"truncated", gt[g].truncated},
+                          {"best_iou", bi},
+                          {"best_distance_m", bo ? nlohmann::json(bo->distance_m) : nlohmann::json(nullptr)}});
     }
   }
   return t;
@@ -229,12 +251,17 @@ void run_detect_eval(const EvalOptions& o) {
     const StereoCalib calib = calib_from_json(g, (tr / "sim_gt" / (s + ".json")).string());
     std::vector<GtObstacle> gt;
     for (const auto& ob : g.value("obstacles", nlohmann::json::array())) {
+      // An obstacle outside the view (or fully hidden) has box null and 0 visible pixels: it is not
+      // part of this frame's ground truth at all (not even don't care).
+      if (!ob.contains("box") || ob.at("box").is_null()) continue;
       GtObstacle x;
       x.id = ob.value("id", 0);
-      const auto b = ob.at("box");
+      const auto& b = ob.at("box");
+      if (!b.is_array() || b.size() != 4) throw UserError("frame " + s + ": obstacle box is not [x0, y0, x1, y1]");
       x.box = {b[0].get<int>(), b[1].get<int>(), b[2].get<int>(), b[3].get<int>()};
       x.distance_m = ob.at("distance_m").get<double>();
       x.visible = ob.value("visible_pixels", 0);
+      x.truncated = ob.value("truncated", false);
       gt.push_back(x);
     }
     const cv::Mat lc = read_image((tr / "image_2" / (s + ".png")).string(), cv::IMREAD_COLOR);
@@ -261,6 +288,8 @@ void run_detect_eval(const EvalOptions& o) {
     nlohmann::json fj = tally_json(t, !o.oracle);
     fj["frame"] = s;
     fj["type"] = type;
+    fj["missed"] = t.missed;
+    fj["false_positive_boxes"] = t.false_pos;
     frames.push_back(fj);
   }
   progress(stems.size(), stems.size(), "done");

@@ -22,6 +22,7 @@ HsvRange range_from(const ConfigValues& v, const std::string& n) {
 
 DetectParams detect_params_from(const ConfigValues& v) {
   DetectParams p;
+  p.fill_max_run_px = v.integer("detect.fill_max_run_px");
   p.road_enabled = v.flag("detect.road_enabled");
   p.road_min_cell_count = v.integer("detect.road_min_cell_count");
   p.road_ransac_iterations = v.integer("detect.road_ransac_iterations");
@@ -46,6 +47,9 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.udisp_min_run_px = v.integer("detect.udisp_min_run_px");
   p.cc_max_step_px = v.num("detect.cc_max_step_px");
   p.min_area_px = v.integer("detect.min_area_px");
+  p.merge_gap_px = v.integer("detect.merge_gap_px");
+  p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
+  p.min_height_m = v.num("detect.min_height_m");
   p.near_m = v.num("detect.near_m");
   p.far_m = v.num("detect.far_m");
   const std::string src = " (in " + v.source + ")";

@@ -103,19 +103,23 @@ TEST(DetectScene, ClassesFollowLimits) {
 
 TEST(DetectScene, SpeckleRemovedByUDisparityAndArea) {
   auto s = two_boxes(0.0, 0.0);
-  // Isolated 6x6 blobs (too big for the road closing to swallow) of near disparities on the road:
-  // short and low in u-disparity.
+  // Isolated 6x6 blobs (too big for a radius-2 road closing to swallow) of near disparities on the
+  // road: short and low in u-disparity.
   for (int i = 0; i < 12; ++i)
     for (int y = 0; y < 6; ++y)
       for (int x = 0; x < 6; ++x) s.disp.at(5 + 18 * i + x, 150 + y) = std::int16_t(16 * (20 + i));
-  const DetectResult r = Detector(DetectParams{}).detect(s.disp, s.rgb, s.calib);
+  DetectParams base;
+  base.road_close_radius = 2;  // the default 9x9 closing would already swallow the 6x6 blobs as road
+  const DetectResult r = Detector(base).detect(s.disp, s.rgb, s.calib);
   EXPECT_EQ(r.obstacles.size(), 2u);
   for (int i = 0; i < 12; ++i) EXPECT_EQ(r.kept.at(7 + 18 * i, 152), 0);
   // Turning the filter off lets the blobs through to the components (they then fail min area).
-  DetectParams loose;
+  DetectParams loose = base;
   loose.udisp_min_height_px = 1;
   loose.udisp_min_run_px = 1;
   loose.min_area_px = 5;
+  loose.min_height_m = 0.0;  // the blobs are 6 rows = 3 cm at 1 m: the height filter would drop them too
+  loose.merge_gap_px = -1;   // and 18 px apart at 5 % disparity steps: keep them separate
   const DetectResult r2 = Detector(loose).detect(s.disp, s.rgb, s.calib);
   EXPECT_GT(r2.obstacles.size(), 2u);
 }
@@ -198,6 +202,54 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_THROW(parse_config("[detect]\nkmeans_k = 17\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_limit = \"left\"\n", "t"), ConfigError);
   EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);
+}
+
+
+TEST(DetectScene, HoleFillTakesTheFartherNeighbourAndLeavesLongRuns) {
+  ImageI16 d(12, 2, kInvalidDisp);
+  // Row 0: 160 | 3 invalid | 96 | 6 invalid to the right border.
+  d.at(0, 0) = 160, d.at(1, 0) = 160, d.at(5, 0) = 96;
+  // Row 1: a run of 5 invalid between 80 and 200 (longer than max_run = 4) stays invalid.
+  d.at(0, 1) = 80, d.at(6, 1) = 200;
+  const ImageI16 f = detect::fill_holes(d, 4);
+  for (int x = 2; x <= 4; ++x) EXPECT_EQ(f.at(x, 0), 96) << x;  // min(160, 96): the background
+  for (int x = 6; x < 12; ++x) EXPECT_EQ(f.at(x, 0), kInvalidDisp) << x;  // 6 > 4
+  for (int x = 1; x <= 5; ++x) EXPECT_EQ(f.at(x, 1), kInvalidDisp) << x;
+  for (int x = 7; x < 12; ++x) EXPECT_EQ(f.at(x, 1), kInvalidDisp) << x;  // 5 > 4
+  const ImageI16 g = detect::fill_holes(d, 6);
+  for (int x = 6; x < 12; ++x) EXPECT_EQ(g.at(x, 0), 96) << x;  // border run: its one neighbour
+  for (int x = 1; x <= 5; ++x) EXPECT_EQ(g.at(x, 1), 80) << x;
+  EXPECT_EQ(detect::fill_holes(d, 0).data, d.data);  // 0 = off
+}
+
+TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
+  // Two 20x30 fragments of one surface at d = 20 px (Z = 1 m at f = 200, B = 0.1), 5 px apart,
+  // and a 40x4 flat strip at d = 30 px (4 rows * 0.67 m / 200 px = 1.3 cm tall).
+  ImageI32 comp(100, 60, 0);
+  ImageI16 disp(100, 60, kInvalidDisp);
+  for (int y = 10; y < 40; ++y)
+    for (int x = 0; x < 20; ++x) comp.at(10 + x, y) = 1, comp.at(35 + x, y) = 2, disp.at(10 + x, y) = 320, disp.at(35 + x, y) = 330;
+  for (int y = 50; y < 54; ++y)
+    for (int x = 40; x < 80; ++x) comp.at(x, y) = 3, disp.at(x, y) = 480;
+  const StereoCalib calib{200.0, 50.0, 30.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.merge_gap_px = 8;
+  p.min_height_m = 0.1;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 3, disp, calib, p, &labels);
+  ASSERT_EQ(o.size(), 1u);  // fragments merged, the strip dropped
+  EXPECT_EQ(o[0].x0, 10);
+  EXPECT_EQ(o[0].x1, 54);
+  EXPECT_EQ(o[0].pixel_count, 1200);
+  EXPECT_EQ(labels.at(40, 20), 1);
+  EXPECT_EQ(labels.at(60, 51), 0);
+  p.merge_gap_px = 4;  // gap of 5 px > 4: two obstacles
+  p.min_height_m = 0.0;  // and the strip stays
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+  p.merge_gap_px = 8;
+  p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
 }
 
 }  // namespace

@@ -35,6 +35,9 @@ enum class SkyLimit { Horizon, Fraction };
 
 // Defaults mirror the [detect] section of common/config/default.toml (ranges in schema.toml).
 struct DetectParams {
+  // ---- hole filling (our addition, before the road stage) ----
+  int fill_max_run_px = 16;             // invalid runs along a row up to this length take the farther
+                                       // bounding disparity (0 = off)
   // ---- road, v-disparity (eq. 16-17) ----
   bool road_enabled = true;
   int road_min_cell_count = 3;         // v-disparity cells with fewer pixels are ignored by the fit
@@ -45,7 +48,7 @@ struct DetectParams {
   double road_slope_max = 2.0;
   double road_min_support_pct = 5.0;   // line accepted when inliers >= this % of valid pixels
   double road_tolerance_px = 1.0;      // pixel is road when |d - (a*v + b)| <= this [px]
-  int road_close_radius = 2;           // closing with a (2r+1)^2 square; 0 = off [px]
+  int road_close_radius = 4;           // closing with a (2r+1)^2 square; 0 = off [px]
   // ---- sky, HSV (eq. 18-21) ----
   bool sky_enabled = true;
   SkyLimit sky_limit = SkyLimit::Horizon;
@@ -63,7 +66,10 @@ struct DetectParams {
   int udisp_min_run_px = 6;        // and it lies in a horizontal run of kept cells at least this long
   // ---- components and distance ----
   double cc_max_step_px = 1.0;     // 8-neighbours join when their disparities differ by <= this [px]
-  int min_area_px = 100;           // smaller components are dropped
+  int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
+  double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
+  int min_area_px = 200;           // smaller components are dropped
+  double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
   double near_m = 2.0;             // Z < near_m: near (red)
   double far_m = 5.0;              // Z >= far_m: far (blue); otherwise mid (green)
 
@@ -100,6 +106,7 @@ struct DetectTimings {
 };
 
 struct DetectResult {
+  ImageI16 disp;                // the disparity every stage used: the input after hole filling (Q4)
   int bins = 0;                 // integer disparities 0 .. bins-1 in the histograms
   ImageI32 vdisp;               // width = bins, height = rows: eq. (17)
   RoadLine road;
@@ -127,6 +134,10 @@ inline constexpr int kMaxClusters = 16;
 
 // ---- stages (free functions, one file each in firmware/core/src/detect/) -----------------------
 namespace detect {
+
+// Row-wise background interpolation: invalid runs of <= max_run pixels take min(left, right)
+// bounding disparity (the one neighbour at the image border); 0 = copy unchanged.
+ImageI16 fill_holes(const ImageI16& disp, int max_run);
 
 // round(d) of a valid Q4 disparity.
 inline int disp_bin(std::int16_t q4) { return (q4 + kDispScale / 2) >> kDispShift; }

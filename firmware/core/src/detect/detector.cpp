@@ -45,18 +45,21 @@ Detector::Detector(const DetectParams& params)
     : params_(params), scratch_(std::make_unique<detect::UDispScratch>()) {}
 Detector::~Detector() = default;
 
-DetectResult Detector::detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib) const {
+DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, const StereoCalib& calib) const {
   using clock = std::chrono::steady_clock;
   const std::lock_guard<std::mutex> lock(scratch_mu_);
   const DetectParams& p = params_;
   DetectResult r;
-  const int w = disp.width, h = disp.height;
+  const int w = disp_in.width, h = disp_in.height;
   auto t = clock::now();
   auto lap = [&](DetectStage s) {
     const auto n = clock::now();
     r.timings.ms[std::size_t(s)] = std::chrono::duration<double, std::milli>(n - t).count();
     t = n;
   };
+  // (0) hole filling (timed with the road stage), then every stage reads r.disp.
+  r.disp = detect::fill_holes(disp_in, p.fill_max_run_px);
+  const ImageI16& disp = r.disp;
   std::int64_t valid = 0;
   for (const auto q : disp.data) valid += q >= 0;
 

@@ -4,6 +4,7 @@
 // component may have picked up at its edges); lateral X = (u_c - cx) * Z / f with u_c the centre
 // column of the box. The class limits near_m / far_m are configurable (the paper gives none).
 #include <algorithm>
+#include <cstdlib>
 #include <cstdint>
 #include <vector>
 
@@ -35,17 +36,65 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
       a.d.push_back(d[x]);
     }
   }
-  std::vector<Obstacle> obs;
-  std::vector<int> comp_of;  // component label of each obstacle
+  // Fragment merging (our addition, docs/detection.md "(e)"): components whose boxes, grown by
+  // merge_gap_px, overlap and whose median disparities differ by <= merge_max_rel_disparity of the
+  // larger one are parts of one obstacle (holes and dark texture split a surface). Single linkage
+  // over the components' own boxes and medians, union-find with the smaller label as root.
+  std::vector<int> med(std::size_t(count) + 1, 0);
   for (int c = 1; c <= count; ++c) {
     Acc& a = acc[std::size_t(c)];
-    if (a.n < p.min_area_px) continue;
+    if (a.n == 0) continue;
+    const std::size_t mid = (a.d.size() - 1) / 2;  // lower median
+    std::nth_element(a.d.begin(), a.d.begin() + std::ptrdiff_t(mid), a.d.end());
+    med[std::size_t(c)] = a.d[mid];
+  }
+  std::vector<int> parent(std::size_t(count) + 1);
+  for (int c = 0; c <= count; ++c) parent[std::size_t(c)] = c;
+  auto find = [&](int c) {
+    while (parent[std::size_t(c)] != c) c = parent[std::size_t(c)] = parent[std::size_t(parent[std::size_t(c)])];
+    return c;
+  };
+  if (p.merge_gap_px >= 0 && p.merge_max_rel_disparity > 0) {
+    const int g = p.merge_gap_px;
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a = acc[std::size_t(c1)];
+      if (a.n == 0) continue;
+      for (int c2 = c1 + 1; c2 <= count; ++c2) {
+        const Acc& b = acc[std::size_t(c2)];
+        if (b.n == 0 || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + g || a.y0 > b.y1 + g) continue;
+        const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
+        if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
+        const int r1 = find(c1), r2 = find(c2);
+        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      }
+    }
+  }
+  std::vector<int> root(std::size_t(count) + 1, 0);
+  for (int c = 1; c <= count; ++c) root[std::size_t(c)] = find(c);
+  for (int c = 1; c <= count; ++c) {
+    const int r = root[std::size_t(c)];
+    if (r == c || acc[std::size_t(c)].n == 0) continue;
+    Acc& a = acc[std::size_t(r)];
+    Acc& b = acc[std::size_t(c)];
+    a.x0 = std::min(a.x0, b.x0), a.y0 = std::min(a.y0, b.y0), a.x1 = std::max(a.x1, b.x1), a.y1 = std::max(a.y1, b.y1);
+    a.n += b.n;
+    a.d.insert(a.d.end(), b.d.begin(), b.d.end());
+    b.n = 0;
+  }
+
+  std::vector<Obstacle> obs;
+  std::vector<int> comp_of;  // component label (group root) of each obstacle
+  for (int c = 1; c <= count; ++c) {
+    Acc& a = acc[std::size_t(c)];
+    if (a.n == 0 || a.n < p.min_area_px) continue;
     const std::size_t mid = (a.d.size() - 1) / 2;  // lower median
     std::nth_element(a.d.begin(), a.d.begin() + std::ptrdiff_t(mid), a.d.end());
     Obstacle o;
     o.x0 = a.x0, o.y0 = a.y0, o.x1 = a.x1, o.y1 = a.y1, o.pixel_count = a.n;
     o.disparity_q4 = std::max<int>(1, a.d[mid]);  // d = 0 would be at infinity; clamp to 1/16 px
     o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
+    // Physical size: an obstacle lower than min_height_m (box rows * Z / f) is road or matcher noise.
+    if (double(o.y1 - o.y0 + 1) * o.distance_m / calib.focal_px < p.min_height_m) continue;
     o.lateral_m = (0.5 * (o.x0 + o.x1) - calib.cx) * o.distance_m / calib.focal_px;
     o.cls = classify_distance(o.distance_m, p);
     obs.push_back(o);
@@ -67,7 +116,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
   if (labels) {
     *labels = ImageI32(components.width, components.height, 0);
     for (std::size_t i = 0; i < components.size(); ++i) {
-      const int c = components.data[i];
+      const int c = components.data[i] > 0 ? root[std::size_t(components.data[i])] : 0;
       if (c > 0 && id_of_comp[std::size_t(c)] >= 0) labels->data[i] = id_of_comp[std::size_t(c)] + 1;
     }
   }

@@ -293,10 +293,65 @@ def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float) -> tuple[
     return lab, n
 
 
+def fill_holes(disp: np.ndarray, max_run: int) -> np.ndarray:
+    """Row-wise background interpolation: a NaN run of <= max_run px takes the smaller of its two
+    bounding disparities (its one neighbour at the image border); longer runs stay NaN."""
+    out = disp.copy()
+    if max_run <= 0:
+        return out
+    h, w = disp.shape
+    for y in range(h):
+        bad = np.isnan(disp[y])
+        if not bad.any():
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.astype(np.int8), [0]))))
+        for x0, x1 in zip(edges[0::2], edges[1::2]):  # [x0, x1) invalid
+            if x1 - x0 > max_run:
+                continue
+            nb = [disp[y, x0 - 1]] if x0 > 0 else []
+            nb += [disp[y, x1]] if x1 < w else []
+            if nb:
+                out[y, x0:x1] = min(nb)
+    return out
+
+
+def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float) -> np.ndarray:
+    """Component -> group root (smallest label): boxes grown by `gap` overlap and the medians differ
+    by <= rel of the larger (single linkage; the firmware uses the lower median of Q4 values)."""
+    root = list(range(n + 1))
+
+    def find(c: int) -> int:
+        while root[c] != c:
+            c = root[c]
+        return c
+    if gap < 0 or rel <= 0:
+        return np.arange(n + 1)
+    box, med = {}, {}
+    for c in range(1, n + 1):
+        ys, xs = np.nonzero(comp == c)
+        if len(xs):
+            box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
+            med[c] = float(np.median(disp[ys, xs]))
+    cs = sorted(box)
+    for i, c1 in enumerate(cs):
+        a = box[c1]
+        for c2 in cs[i + 1:]:
+            b = box[c2]
+            if b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap:
+                continue
+            if abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
+                continue
+            r1, r2 = find(c1), find(c2)
+            if r1 != r2:
+                root[max(r1, r2)] = min(r1, r2)
+    return np.array([find(c) for c in range(n + 1)])
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
     h, w = disp.shape
+    disp = fill_holes(disp, int(p.fill_max_run_px))
     valid = np.isfinite(disp)
     bins = int(disp_bin(disp[valid]).max()) + 1 if valid.any() else 1
     vd = v_disparity(disp, bins)
@@ -317,6 +372,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     labels[cand] = lab
     kept = u_disparity_filter(disp, labels, len(centres), bins, p)
     comp, n = components(kept, disp, p.cc_max_step_px)
+    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
+    comp = roots[comp] * (comp > 0)
     obstacles = []
     comp_ids = []
     for c in range(1, n + 1):
@@ -325,6 +382,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
             continue
         d = max(float(np.median(disp[ys, xs])), 1.0 / 16)
         z = calib["focal_px"] * calib["baseline_m"] / d
+        if (ys.max() - ys.min() + 1) * z / calib["focal_px"] < p.min_height_m:
+            continue
         x0, x1 = int(xs.min()), int(xs.max())
         cls = "near" if z < p.near_m else "far" if z >= p.far_m else "mid"
         obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
