@@ -124,6 +124,7 @@ void run_suite(const SuiteOptions& o) {
         lo.scene = make_suite_scene(o.seed, it.index, it.blocked, cfg, &it.features);
         lo.source = "sim:" + lo.scene->source;
         lo.quiet = true;
+        lo.look_around = true;
         lo.sim_latency_ms = o.latency_ms;
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;

@@ -38,6 +38,9 @@ struct LoopOptions {
   // `stall_ms` (sim: simulated time; other sources: a real sleep).
   int stall_frame = -1;
   double stall_ms = 0;
+  // Turn once on the spot before driving (sim suite default: the camera sees 74 deg, an obstacle
+  // beside the start is unknown otherwise).
+  bool look_around = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
 };
