@@ -184,6 +184,7 @@ json LoopResult::to_json() const {
   json j{{"status", status},
          {"reached", reached},
          {"collided", collided},
+         {"struck", struck},
          {"safe_stop", safe_stop},
          {"timed_out", timed_out},
          {"frames", frames},
@@ -556,8 +557,30 @@ LoopResult RobotLoop::run() {
         const double ts = robot::ns_to_s(t - t0);
         const double clear = I.world->clearance(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, ts) - I.rp.radius_m;
         res.min_clearance_m = std::min(res.min_clearance_m, clear);
-        if (clear < 0) res.collided = true;
+        if (clear < 0) {
+          // Who hit whom: a moving obstacle running into the standing robot from outside the
+          // camera's view is recorded as "struck" (the robot could neither see it nor back away:
+          // no reversing, the cameras look forward); everything else is a collision.
+          const double speed = 0.5 * (std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps()));
+          bool struck = false;
+          if (speed < 0.02) {
+            const auto fps = I.world->obstacles_at(ts);
+            const auto& spec = I.world->scene().obstacles;
+            double best = std::numeric_limits<double>::infinity();
+            for (const auto& f : fps) {
+              const double d = std::hypot(f.x_m - true_pose.x, f.y_m - true_pose.y) - (f.circle ? f.radius_m : 0.0);
+              if (d >= best) continue;
+              best = d;
+              const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& o) { return o.id == f.id; });
+              const bool moving = it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
+              const double bearing = robot::wrap_angle(std::atan2(f.y_m - true_pose.y, f.x_m - true_pose.x) - true_pose.yaw);
+              struck = moving && std::fabs(bearing) > std::atan2(0.5 * gl.width, I.calib.focal_px);
+            }
+          }
+          (struck ? res.struck : res.collided) = true;
+        }
       }
+      if (res.struck) break;
     } else {
       I.motors->set(wc.left, wc.right);
       applied = wc.twist;
@@ -641,6 +664,10 @@ LoopResult RobotLoop::run() {
     // ---- end conditions ----
     if (res.collided) {
       end_status = "collision";
+      break;
+    }
+    if (res.struck) {
+      end_status = "struck";
       break;
     }
     const Pose2D judge = I.world ? true_pose : odom.pose();

@@ -50,8 +50,11 @@ struct StageStat {
 };
 
 struct LoopResult {
-  std::string status;       // reached | collision | blocked_stop | timeout | end_of_stream | interrupted | frames
+  std::string status;       // reached | collision | struck | blocked_stop | timeout | end_of_stream | interrupted | frames
   bool reached = false, collided = false, safe_stop = false, timed_out = false;
+  // sim: a moving obstacle ran into the standing robot from outside the camera's view (not counted
+  // as a collision of the robot, not a success either; docs/robot.md "Closed-loop suite")
+  bool struck = false;
   int frames = 0;
   double time_s = 0;        // simulated (sim) or wall time of the run [s]
   double path_m = 0;        // distance driven (true pose in sim) [m]
