@@ -266,6 +266,7 @@ void run_suite(const SuiteOptions& o) {
         lo.scene = make_suite_scene(o.seed, it.index, it.blocked, cfg, &it.features);
         lo.source = "sim:" + lo.scene->source;
         lo.quiet = true;
+        lo.look_around = true;
         lo.sim_latency_ms = o.latency_ms;
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;
@@ -291,6 +292,7 @@ void run_suite(const SuiteOptions& o) {
   if (!first_error.empty() && first_error.find("error") != std::string::npos) {
   }
 
+  int struck = 0;
   int solvable = 0, reached = 0, collisions = 0, blocked = 0, blocked_safe = 0, moving = 0, moving_ok = 0, gaps = 0,
       gaps_ok = 0, errors = 0;
   std::vector<double> ratios, fps, match_ms, total_ms;
@@ -299,6 +301,7 @@ void run_suite(const SuiteOptions& o) {
     const LoopResult& r = it.r;
     if (r.status.rfind("error", 0) == 0) ++errors;
     if (r.collided) ++collisions;
+    if (r.struck) ++struck;
     if (it.blocked) {
       ++blocked;
       if (r.safe_stop && !r.collided) ++blocked_safe;
@@ -348,6 +351,7 @@ void run_suite(const SuiteOptions& o) {
   std::printf("  with moving obstacles %3d / %3d\n", moving_ok, moving);
   std::printf("  through narrow gaps   %3d / %3d\n", gaps_ok, gaps);
   std::printf("collisions            %3d          (target 0)\n", collisions);
+  std::printf("struck while standing  %3d          (a moving obstacle from outside the camera view)\n", struck);
   std::printf("safe stop, no path    %3d / %3d  %.1f %%   (target 100 %%)\n", blocked_safe, blocked, safe);
   std::printf("path / shortest       mean %.3f  max %.3f\n", ratio_mean, ratio_max);
   std::printf("processing            median %.1f frames/s (match %.1f ms, whole frame %.1f ms)\n", med(fps),
@@ -363,6 +367,7 @@ void run_suite(const SuiteOptions& o) {
            {"gaps", gaps},
            {"gaps_reached", gaps_ok},
            {"collisions", collisions},
+           {"struck", struck},
            {"blocked", blocked},
            {"blocked_safe_stop", blocked_safe},
            {"safe_stop_pct", safe},

@@ -26,6 +26,7 @@
 #include "fuzzystereo/robot/failsafe.hpp"
 #include "fuzzystereo/robot/motors.hpp"
 #include "fuzzystereo/robot/nav_sim.hpp"
+#include "fuzzystereo/robot/obstacle_map.hpp"
 #include "fuzzystereo/robot/odometry.hpp"
 #include "fuzzystereo/robot/params.hpp"
 #include "fuzzystereo/robot/planner.hpp"
@@ -80,56 +81,101 @@ StageStat stat_of(std::vector<double> v) {
   return s;
 }
 
-// The detected obstacles as ground-plane circles in the robot frame (x forward, y left) and then
-// in the world frame. A detection wider than `chunk_m` (a wall, a row of posts) becomes a chain of
-// circles, one per column strip of about chunk_m, each at the median disparity of its own pixels:
-// a single circle around a wall would swallow the gaps the robot must drive through.
-std::vector<robot::ObstacleMeasurement> measurements_of(const DetectResult& det, const ImageI16& disp,
-                                                       const StereoCalib& calib, const Pose2D& pose,
-                                                       double chunk_m) {
-  std::vector<robot::ObstacleMeasurement> out;
-  const double cp = std::cos(calib.pitch_rad), sp = std::sin(calib.pitch_rad);
+// Range over which the camera's depth is trusted for the map and the tracker [m]: at 4.5 m a
+// 0.25 px disparity error is 0.2 m of depth (320 x 180, f = 210 px, B = 0.12 m).
+constexpr double kMapRangeM = 4.5;
+// Detections wider than this are walls / rows of posts: the map holds them, the tracker does not
+// (its point model would turn the jittering fragments of a wall into ghost tracks) [m].
+constexpr double kTrackMaxWidthM = 0.8;
+// Tracks slower than this are left to the map (a static obstacle's velocity estimate is noise) [m/s].
+constexpr double kMovingSpeedMps = 0.04;
+// ... and need this many associated frames before their velocity is trusted.
+constexpr int kMovingMinHits = 4;
+// A moving track is planned with for this long after its last measurement (it coasts out of the
+// camera's view); older ones are guesses that would block free space [s].
+constexpr double kMovingMaxAgeS = 2.5;
+
+// Forward distance (ground plane, robot frame) and left offset of the camera point at column u,
+// row v, disparity d_px (docs/simulator.md: forward = Z cos p - Y sin p, left = -X).
+struct GroundPt {
+  double fwd, left, depth;
+};
+GroundPt ground_of(const StereoCalib& calib, double u, double v, double d_px) {
+  const double Z = calib.depth_of(d_px);
+  const double X = (u - calib.cx) * Z / calib.focal_px;
+  const double Y = (v - calib.cy) * Z / calib.focal_px;
+  return {Z * std::cos(calib.pitch_rad) - Y * std::sin(calib.pitch_rad), -X, Z};
+}
+
+// Depth std of a stereo point: 0.25 px disparity error, dZ = Z^2 / (f B) * dd.
+double depth_sigma(const StereoCalib& calib, double Z) { return 0.25 * Z * Z / (calib.focal_px * calib.baseline_m); }
+
+// The frame's detections as (a) a camera scan for the static map: per image column the surface
+// point of each detected obstacle (median disparity of its pixels in that column) and the forward
+// distance the column sees free, and (b) point measurements for the tracker, one per compact
+// detection (narrower than kTrackMaxWidthM), centred half its width behind the visible front.
+void measurements_of(const DetectResult& det, const ImageI16& disp, const StereoCalib& calib, const Pose2D& pose,
+                     int max_disparity_px, robot::CameraScan& scan, std::vector<robot::ObstacleMeasurement>& meas) {
+  const int w = disp.width, h = disp.height;
   const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
+  auto to_world = [&](double fwd, double left) {
+    return Vec2{pose.x + cy * fwd - sy * left, pose.y + sy * fwd + cy * left};
+  };
+  scan.pose = pose;
+  scan.focal_px = calib.focal_px;
+  scan.cx = calib.cx;
+  // Nearer than the depth of the largest disparity the matcher searches, the camera sees nothing.
+  scan.min_range_m = calib.depth_of(std::max(1, max_disparity_px - 2)) + 0.05;
+  scan.free_range_m.assign(static_cast<std::size_t>(w), kMapRangeM);
+  scan.hits.clear();
+  meas.clear();
+  // Columns without enough valid disparities (an obstacle too close to match, a textureless
+  // surface) or with disparities at the top of the search range are not seen free.
+  const int sat_q4 = (max_disparity_px - 2) * kDispScale;
+  for (int x = 0; x < w; ++x) {
+    int valid = 0, sat = 0;
+    for (int y = 0; y < h; ++y) {
+      const std::int16_t d = disp.row(y)[x];
+      valid += d > 0;
+      sat += d >= sat_q4;
+    }
+    if (valid < h * 2 / 5 || sat > h / 10) scan.free_range_m[static_cast<std::size_t>(x)] = 0.0;
+  }
   std::vector<std::int16_t> vals;
   for (const Obstacle& o : det.obstacles) {
-    const double z0 = o.distance_m;
-    const int strip_px = std::max(4, static_cast<int>(std::lround(chunk_m * calib.focal_px / std::max(z0, 0.05))));
-    for (int x0 = o.x0; x0 <= o.x1; x0 += strip_px) {
-      const int x1 = std::min(o.x1, x0 + strip_px - 1);
+    // (a) per-column surface points
+    for (int x = o.x0; x <= o.x1; ++x) {
       vals.clear();
       long sum_v = 0;
-      for (int y = o.y0; y <= o.y1; ++y) {
-        const std::int32_t* lab = det.obstacle_labels.row(y);
-        const std::int16_t* d = disp.row(y);
-        for (int x = x0; x <= x1; ++x)
-          if (lab[x] == o.id + 1 && d[x] > 0) {
-            vals.push_back(d[x]);
+      for (int y = o.y0; y <= o.y1; ++y)
+        if (det.obstacle_labels.row(y)[x] == o.id + 1) {
+          const std::int16_t d = disp.row(y)[x];
+          if (d > 0) {
+            vals.push_back(d);
             sum_v += y;
           }
-      }
-      if (vals.size() < 8) continue;
+        }
+      if (vals.size() < 3) continue;
       const std::size_t n = vals.size();
       std::nth_element(vals.begin(), vals.begin() + static_cast<std::ptrdiff_t>(n / 2), vals.end());
-      const double d_px = vals[n / 2] / static_cast<double>(kDispScale);
-      const double Z = calib.depth_of(d_px);
-      const double u = 0.5 * (x0 + x1);
-      const double v = static_cast<double>(sum_v) / static_cast<double>(n);
-      const double X = (u - calib.cx) * Z / calib.focal_px;
-      const double Y = (v - calib.cy) * Z / calib.focal_px;
-      // Camera -> robot frame (docs/simulator.md): forward = Z cos p - Y sin p, left = -X.
-      const double half_w = 0.5 * (x1 - x0 + 1) * Z / calib.focal_px;
-      const double fwd = Z * cp - Y * sp + half_w;  // the visible surface is the front: centre behind it
-      const double left = -X;
-      robot::ObstacleMeasurement m;
-      m.p = {pose.x + cy * fwd - sy * left, pose.y + sy * fwd + cy * left};
-      m.radius_m = half_w;
-      m.distance_class = static_cast<int>(o.cls);
-      // Depth std grows with Z^2 (0.25 px disparity error); lateral error is small.
-      m.sigma_m = std::max(0.03, 0.25 * Z * Z / (calib.focal_px * calib.baseline_m));
-      out.push_back(m);
+      const GroundPt g = ground_of(calib, x, static_cast<double>(sum_v) / static_cast<double>(n),
+                                   vals[n / 2] / static_cast<double>(kDispScale));
+      double& fr = scan.free_range_m[static_cast<std::size_t>(x)];
+      fr = std::min(fr, g.fwd - std::max(0.15, 2.0 * depth_sigma(calib, g.depth)));
+      if (g.fwd <= kMapRangeM) scan.hits.push_back(to_world(g.fwd, g.left));
     }
+    // (b) a point measurement for the tracker
+    if (o.distance_m > kMapRangeM + 0.5) continue;
+    const double width_m = (o.x1 - o.x0 + 1) * o.distance_m / calib.focal_px;
+    if (width_m > kTrackMaxWidthM) continue;
+    const GroundPt g = ground_of(calib, 0.5 * (o.x0 + o.x1), 0.5 * (o.y0 + o.y1), o.disparity_q4 / static_cast<double>(kDispScale));
+    robot::ObstacleMeasurement m;
+    m.radius_m = 0.5 * width_m;
+    m.p = to_world(g.fwd + m.radius_m, g.left);  // the visible surface is the front: centre behind it
+    m.distance_class = static_cast<int>(o.cls);
+    m.sigma_m = std::max(0.03, depth_sigma(calib, g.depth));
+    meas.push_back(m);
   }
-  return out;
 }
 
 }  // namespace
@@ -140,6 +186,7 @@ json LoopResult::to_json() const {
   json j{{"status", status},
          {"reached", reached},
          {"collided", collided},
+         {"struck", struck},
          {"safe_stop", safe_stop},
          {"timed_out", timed_out},
          {"frames", frames},
@@ -334,6 +381,14 @@ LoopResult RobotLoop::run() {
   std::map<std::string, std::vector<double>> stage_ms;
   Pose2D true_pose = start, last_true = start;
   int blocked_run = 0;
+  robot::ObstacleMap world_map;
+  robot::CameraScan scan;
+  std::vector<robot::ObstacleMeasurement> meas;
+  double scan_turned_rad = 0;
+  double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
+  constexpr double kScanYawRate = 1.2;   // [rad/s]
+  constexpr double kPlanRadiusM = 8.0;   // map cells within this distance go to the planner [m]
+  double wl_prev = 0, wr_prev = 0;
   const int blocked_frames_to_stop = std::max(3, static_cast<int>(std::lround(3.0 / I.pp.control_period_s)));
   const auto wall_start = std::chrono::steady_clock::now();
   double processing_ms = 0;
@@ -427,28 +482,58 @@ LoopResult RobotLoop::run() {
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
-    const auto meas = measurements_of(det, mr.disp_final, I.calib, pose, 0.3);
+    measurements_of(det, mr.disp_final, I.calib, pose, I.cfg.matcher.cost.max_disparity, scan, meas);
+    world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
-    const double max_range = I.calib.depth_of(std::max(1.0, detect_params_from(I.cfg.values).kmeans_min_disparity_px));
     const auto visible = [&](Vec2 p) {
       const Vec2 d = p - pose.pos();
       const double r = robot::norm(d);
-      if (r < 0.3 || r > max_range) return false;
+      if (r < scan.min_range_m + 0.3 || r > kMapRangeM) return false;
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, visible);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
     // ---- plan ----
+    // Static world from the map; moving obstacles (confirmed, fast enough, seen often enough to
+    // trust the velocity) from the tracker, grown by their position uncertainty.
     s1 = std::chrono::steady_clock::now();
-    std::vector<CircleObstacle> obstacles = tracker.obstacles(true, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
-    std::vector<CircleObstacle> raw;
-    for (const auto& m : meas) raw.push_back({m.p, m.radius_m, {}});
+    std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), kPlanRadiusM);
+    {
+      const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
+      const auto& trs = tracker.tracks();
+      std::size_t k = 0;
+      for (const auto& tr : trs) {
+        if (!tr.confirmed) continue;
+        const CircleObstacle& o = tracked[k++];
+        const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
+        if (tr.hits >= kMovingMinHits && robot::norm(o.vel) >= kMovingSpeedMps && age_s <= kMovingMaxAgeS)
+          obstacles.push_back(o);
+      }
+    }
     const robot::PlanOutput plan = planner.plan(pose, mixer.last(), goal, obstacles);
-    const bool ahead = robot::obstacle_in_front(pose, raw, I.rp.radius_m, I.rp.stop_distance_m) ||
-                       robot::obstacle_in_front(pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
+    const bool ahead = robot::obstacle_in_front(pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;
-    if (plan.status == robot::PlanStatus::kReached || plan.status == robot::PlanStatus::kBlocked) want = {};
+    if (plan.status == robot::PlanStatus::kReached) want = {};
+    if (look_around_turned < 2.0 * M_PI) {
+      // First look around once before driving: the camera sees 74 deg, and an obstacle beside the
+      // start would otherwise be unknown until the robot turns into it.
+      want = {0.0, kScanYawRate};
+      look_around_turned += std::fabs(mixer.last().omega) * I.pp.control_period_s;
+      if (look_around_turned >= 2.0 * M_PI) want = {};
+    } else if (plan.status == robot::PlanStatus::kBlocked) {
+      // No path in what the robot knows: look around once (turning on the spot sweeps no new area
+      // for a disc robot) before declaring the goal unreachable — a way out may lie outside the
+      // camera's 74 deg view.
+      if (scan_turned_rad < 2.0 * M_PI) {
+        want = {0.0, kScanYawRate};
+        scan_turned_rad += std::fabs(mixer.last().omega) * I.pp.control_period_s;
+      } else {
+        want = {};
+      }
+    } else {
+      scan_turned_rad = 0;
+    }
     want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;
     const bool held = opt.hold && opt.hold();
@@ -486,15 +571,40 @@ LoopResult RobotLoop::run() {
         I.sim_motors->advance_to(t - t0);
         sim_wd->poll(t);
         const double dt = robot::ns_to_s(kSubStepNs);
-        odom.update(I.sim_motors->wheel_left_mps(), I.sim_motors->wheel_right_mps(), dt);
+        const double wl = I.sim_motors->wheel_left_mps(), wr = I.sim_motors->wheel_right_mps();
+        odom.update(0.5 * (wl + wl_prev), 0.5 * (wr + wr_prev), dt);  // mean speed over the step
+        wl_prev = wl;
+        wr_prev = wr;
         true_pose = I.sim_motors->pose();
         res.path_m += std::hypot(true_pose.x - last_true.x, true_pose.y - last_true.y);
         last_true = true_pose;
         const double ts = robot::ns_to_s(t - t0);
         const double clear = I.world->clearance(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, ts) - I.rp.radius_m;
         res.min_clearance_m = std::min(res.min_clearance_m, clear);
-        if (clear < 0) res.collided = true;
+        if (clear < 0) {
+          // Who hit whom: a moving obstacle running into the standing robot from outside the
+          // camera's view is recorded as "struck" (the robot could neither see it nor back away:
+          // no reversing, the cameras look forward); everything else is a collision.
+          const double speed = 0.5 * (std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps()));
+          bool struck = false;
+          if (speed < 0.02) {
+            const auto fps = I.world->obstacles_at(ts);
+            const auto& spec = I.world->scene().obstacles;
+            double best = std::numeric_limits<double>::infinity();
+            for (const auto& f : fps) {
+              const double d = std::hypot(f.x_m - true_pose.x, f.y_m - true_pose.y) - (f.circle ? f.radius_m : 0.0);
+              if (d >= best) continue;
+              best = d;
+              const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& o) { return o.id == f.id; });
+              const bool moving = it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
+              const double bearing = robot::wrap_angle(std::atan2(f.y_m - true_pose.y, f.x_m - true_pose.x) - true_pose.yaw);
+              struck = moving && std::fabs(bearing) > std::atan2(0.5 * gl.width, I.calib.focal_px);
+            }
+          }
+          (struck ? res.struck : res.collided) = true;
+        }
       }
+      if (res.struck) break;
     } else {
       I.motors->set(wc.left, wc.right);
       applied = wc.twist;
@@ -527,8 +637,14 @@ LoopResult RobotLoop::run() {
             {"cmd", {applied.v, applied.omega}},
             {"wheels", {wc.left, wc.right}},
             {"status", held ? "held" : robot::to_string(plan.status)},
-            {"front_stop", ahead}};
+            {"front_stop", ahead},
+            {"map_cells", world_map.occupied_count()}};
     if (I.world) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
+    if (!opt.record_dir.empty() && frame % 10 == 0) {
+      json mj = json::array();
+      for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});
+      fj["plan_obstacles"] = std::move(mj);
+    }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)
       dets.push_back({{"box", {o.x0, o.y0, o.x1, o.y1}},
@@ -573,6 +689,10 @@ LoopResult RobotLoop::run() {
     // ---- end conditions ----
     if (res.collided) {
       end_status = "collision";
+      break;
+    }
+    if (res.struck) {
+      end_status = "struck";
       break;
     }
     const Pose2D judge = I.world ? true_pose : odom.pose();
@@ -664,7 +784,7 @@ sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const C
   m.goal_x_m = nav.goal.x;
   m.goal_y_m = nav.goal.y;
   const double straight = robot::norm(nav.goal - nav.start.pos());
-  m.time_limit_s = blocked ? 30.0 : 3.0 * straight / rp.max_speed_mps + 20.0;
+  m.time_limit_s = blocked ? 60.0 : 3.0 * straight / rp.max_speed_mps + 20.0;
   sc.mission = m;
   sc.sky.kind = static_cast<sim::SkyKind>(pick(3));
   sc.light.sun_azimuth_deg = uni(0, 360);

@@ -39,6 +39,9 @@ struct LoopOptions {
   // `stall_ms` (sim: simulated time; other sources: a real sleep).
   int stall_frame = -1;
   double stall_ms = 0;
+  // Turn once on the spot before driving (sim suite default: the camera sees 74 deg, an obstacle
+  // beside the start is unknown otherwise).
+  bool look_around = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
@@ -52,8 +55,11 @@ struct StageStat {
 };
 
 struct LoopResult {
-  std::string status;       // reached | collision | blocked_stop | timeout | end_of_stream | interrupted | frames
+  std::string status;       // reached | collision | struck | blocked_stop | timeout | end_of_stream | interrupted | frames
   bool reached = false, collided = false, safe_stop = false, timed_out = false;
+  // sim: a moving obstacle ran into the standing robot from outside the camera's view (not counted
+  // as a collision of the robot, not a success either; docs/robot.md "Closed-loop suite")
+  bool struck = false;
   int frames = 0;
   double time_s = 0;        // simulated (sim) or wall time of the run [s]
   double path_m = 0;        // distance driven (true pose in sim) [m]

@@ -1,0 +1,63 @@
+// Static world memory: a log-odds occupancy grid on the ground plane, filled from the obstacle
+// surface points the stereo camera sees and cleared along the camera rays that see free space.
+//
+// Why a grid next to the tracker (docs/robot.md "Closed loop"): the tracker (eq. 26-32) is made
+// for compact objects; walls, rows of posts and large close obstacles arrive as many fragments
+// whose positions jitter from frame to frame, which the tracker turns into spurious tracks with
+// ghost velocities. The grid remembers what was seen where (also out of the camera's 74 deg view,
+// so the robot does not forget an obstacle beside it when it turns) and forgets it only when the
+// camera looks at that place again and sees through it (moving obstacles leave no permanent trail).
+// The planner gets the occupied cells as small static circles; moving obstacles come from the tracker.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "fuzzystereo/robot/geometry.hpp"
+
+namespace fs::robot {
+
+struct ObstacleMapParams {
+  double cell_m = 0.05;      // cell size [m]; occupied cells go to the planner as circles of cell/2
+  double extent_m = 24.0;    // the grid covers +-extent/2 around the first pose [m]
+  double hit = 0.85;         // log-odds added for a frame with a surface point in the cell
+  double miss = 0.4;         // log-odds removed for a frame that sees through the cell
+  double l_min = -2.0, l_max = 3.5;  // clamp (bounds how long a cell takes to change its mind)
+  double l_occupied = 0.4;   // occupied when the log-odds exceed this
+};
+
+// One camera frame as rays: for each image column the ground distance up to which the camera saw
+// free space, and the obstacle surface points it saw (world frame).
+struct CameraScan {
+  Pose2D pose;                        // robot pose at capture (camera centre at the robot centre)
+  double focal_px = 0, cx = 0;        // rectified left camera
+  double min_range_m = 0.5;           // nearer than this the camera measures nothing (disparity range)
+  std::vector<double> free_range_m;   // per column: forward distance seen free (0 = nothing known)
+  std::vector<Vec2> hits;             // obstacle surface points (world) [m]
+};
+
+class ObstacleMap {
+ public:
+  explicit ObstacleMap(const ObstacleMapParams& p = {}) : p_(p) {}
+  // Hits raise their cells (once per frame per cell), then every cell inside the camera's view
+  // nearer than its column's free range (and not hit this frame) is lowered.
+  void integrate(const CameraScan& scan);
+  // Occupied cells within `radius_m` of `centre` as static circles (at the mean of the hit points
+  // that fell into the cell, radius cell/2).
+  std::vector<CircleObstacle> obstacles(Vec2 centre, double radius_m) const;
+  int occupied_count() const;
+  const ObstacleMapParams& params() const { return p_; }
+
+ private:
+  bool cell_of(Vec2 p, int& ix, int& iy) const;
+  ObstacleMapParams p_;
+  bool init_ = false;
+  Vec2 origin_;   // world position of cell (0, 0)'s corner
+  int n_ = 0;     // cells per axis
+  std::vector<float> logodds_;
+  std::vector<float> sx_, sy_;   // running mean of the hit points in the cell
+  std::vector<std::uint32_t> nhit_;
+  std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
+  std::uint32_t frame_ = 0;
+};
+
+}  // namespace fs::robot

@@ -1,0 +1,105 @@
+// Log-odds occupancy grid of the static world (obstacle_map.hpp, docs/robot.md "Closed loop").
+#include "fuzzystereo/robot/obstacle_map.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fs::robot {
+
+bool ObstacleMap::cell_of(Vec2 p, int& ix, int& iy) const {
+  ix = static_cast<int>(std::floor((p.x - origin_.x) / p_.cell_m));
+  iy = static_cast<int>(std::floor((p.y - origin_.y) / p_.cell_m));
+  return ix >= 0 && iy >= 0 && ix < n_ && iy < n_;
+}
+
+void ObstacleMap::integrate(const CameraScan& scan) {
+  if (!init_) {
+    n_ = std::max(1, static_cast<int>(std::ceil(p_.extent_m / p_.cell_m)));
+    origin_ = {scan.pose.x - 0.5 * n_ * p_.cell_m, scan.pose.y - 0.5 * n_ * p_.cell_m};
+    const std::size_t nn = static_cast<std::size_t>(n_) * static_cast<std::size_t>(n_);
+    logodds_.assign(nn, 0.f);
+    sx_.assign(nn, 0.f);
+    sy_.assign(nn, 0.f);
+    nhit_.assign(nn, 0);
+    stamp_.assign(nn, 0);
+    init_ = true;
+  }
+  ++frame_;
+  // 1. hits
+  for (const Vec2& h : scan.hits) {
+    int ix, iy;
+    if (!cell_of(h, ix, iy)) continue;
+    const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
+    // running mean of the points (a window of ~20 keeps it following slow drift of the odometry)
+    const std::uint32_t k = std::min<std::uint32_t>(nhit_[i] + 1, 20);
+    sx_[i] += static_cast<float>((h.x - sx_[i]) / k);
+    sy_[i] += static_cast<float>((h.y - sy_[i]) / k);
+    nhit_[i] = k;
+    if (stamp_[i] == frame_) continue;
+    stamp_[i] = frame_;
+    logodds_[i] = std::min(static_cast<float>(p_.l_max), logodds_[i] + static_cast<float>(p_.hit));
+  }
+  // 2. free space along the rays: cells in the view, nearer than their column's free range
+  const int w = static_cast<int>(scan.free_range_m.size());
+  if (w == 0) return;
+  double rmax = 0;
+  for (double r : scan.free_range_m) rmax = std::max(rmax, r);
+  if (rmax <= scan.min_range_m) return;
+  const double c = std::cos(scan.pose.yaw), s = std::sin(scan.pose.yaw);
+  int x0, y0, x1, y1;
+  cell_of({scan.pose.x - rmax, scan.pose.y - rmax}, x0, y0);
+  cell_of({scan.pose.x + rmax, scan.pose.y + rmax}, x1, y1);
+  x0 = std::max(0, x0);
+  y0 = std::max(0, y0);
+  x1 = std::min(n_ - 1, x1);
+  y1 = std::min(n_ - 1, y1);
+  for (int iy = y0; iy <= y1; ++iy)
+    for (int ix = x0; ix <= x1; ++ix) {
+      const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
+      if (logodds_[i] <= static_cast<float>(p_.l_min) || stamp_[i] == frame_) continue;
+      // cell centre in the robot frame
+      const double wx = origin_.x + (ix + 0.5) * p_.cell_m - scan.pose.x;
+      const double wy = origin_.y + (iy + 0.5) * p_.cell_m - scan.pose.y;
+      const double fwd = c * wx + s * wy, left = -s * wx + c * wy;
+      if (fwd < scan.min_range_m || fwd > rmax) continue;
+      // the whole cell must lie inside the column's free range: test its near and far columns
+      const double half = 0.5 * p_.cell_m;
+      const double u = scan.cx - scan.focal_px * left / fwd;
+      const double du = scan.focal_px * half * 1.5 / fwd;
+      const int u0 = static_cast<int>(std::floor(u - du)), u1 = static_cast<int>(std::ceil(u + du));
+      if (u0 < 0 || u1 >= w) continue;
+      bool free = true;
+      for (int uu = u0; uu <= u1 && free; ++uu) free = fwd + half < scan.free_range_m[uu];
+      if (!free) continue;
+      logodds_[i] = std::max(static_cast<float>(p_.l_min), logodds_[i] - static_cast<float>(p_.miss));
+    }
+}
+
+std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m) const {
+  std::vector<CircleObstacle> out;
+  if (!init_) return out;
+  int x0, y0, x1, y1;
+  cell_of({centre.x - radius_m, centre.y - radius_m}, x0, y0);
+  cell_of({centre.x + radius_m, centre.y + radius_m}, x1, y1);
+  x0 = std::max(0, x0);
+  y0 = std::max(0, y0);
+  x1 = std::min(n_ - 1, x1);
+  y1 = std::min(n_ - 1, y1);
+  for (int iy = y0; iy <= y1; ++iy)
+    for (int ix = x0; ix <= x1; ++ix) {
+      const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
+      if (logodds_[i] <= static_cast<float>(p_.l_occupied)) continue;
+      const Vec2 p{sx_[i], sy_[i]};
+      if (norm(p - centre) > radius_m) continue;
+      out.push_back({p, 0.5 * p_.cell_m, {}});
+    }
+  return out;
+}
+
+int ObstacleMap::occupied_count() const {
+  int n = 0;
+  for (float l : logodds_) n += l > static_cast<float>(p_.l_occupied);
+  return n;
+}
+
+}  // namespace fs::robot
