@@ -21,6 +21,11 @@ CPP_TYPES = {"u8": "std::uint8_t", "u16": "std::uint16_t", "u32": "std::uint32_t
 SCALARS = {"u8", "u16", "u32", "i32", "f32"}
 
 
+# The layout hash is computed a second time, independently, by the host
+# (fuzzyctl.link.schema.layout_hash): this generator runs at build time with the bare system Python
+# (also for the cross build) and must not import the host package. The two must agree byte for byte;
+# tests/python/test_link_device.py::test_info_reports_layout_and_config checks the firmware's
+# generated hash against the host's.
 def _strip_docs(node):
     if isinstance(node, dict):
         return {k: _strip_docs(v) for k, v in node.items() if k != "doc"}
