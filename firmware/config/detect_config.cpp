@@ -46,6 +46,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.udisp_d_tolerance_px = v.integer("detect.udisp_d_tolerance_px");
   p.udisp_min_run_px = v.integer("detect.udisp_min_run_px");
   p.cc_max_step_px = v.num("detect.cc_max_step_px");
+  p.cc_max_rel_step = v.num("detect.cc_max_rel_step");
+  p.cc_min_step_px = v.num("detect.cc_min_step_px");
   p.min_area_px = v.integer("detect.min_area_px");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");

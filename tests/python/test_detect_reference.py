@@ -115,3 +115,15 @@ def test_reference_detect_command(dumps, tmp_path):
     assert len(doc["obstacles"]) == len(fw["obstacles"]) == 2
     assert np.load(tmp_path / "ref/road_mask.npy").shape == np.load(dumps["oracle"] / "dump/road_mask.npy").shape
     assert cli.main(["reference", "detect", "--dump", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
+
+
+def test_relative_step_separates_far_neighbours():
+    # Two touching surfaces at 6.7 px and 5.7 px: the absolute 1-px step joins them, a 3 % relative
+    # step (0.2 px at 6.7 px, floor 0.25 px) keeps them apart; a 0.25-px step still joins.
+    mask = np.ones((6, 20), np.uint8)
+    disp = np.where(np.arange(20)[None, :] < 10, 6.6875, 5.6875) * np.ones((6, 1))
+    assert refdet.components(mask, disp, 1.0)[1] == 1
+    lab, n = refdet.components(mask, disp, 1.0, 0.03, 0.25)
+    assert n == 2 and lab[3, 9] != lab[3, 10]
+    disp[:, 10:] = 6.4375
+    assert refdet.components(mask, disp, 1.0, 0.03, 0.25)[1] == 1

@@ -174,7 +174,9 @@ inline detect::UDispResult u_disparity(const ImageI16& disp, const ImageU8& labe
 }
 
 // Flood fill (breadth first), components numbered in raster order of their first pixel.
-inline ImageI32 components(const ImageU8& m, const ImageI16& disp, int step, int* count) {
+// rel > 0: a step must also be <= max(min_step, rel * the larger disparity).
+inline ImageI32 components(const ImageU8& m, const ImageI16& disp, int step, int* count, double rel = 0.0,
+                           int min_step = 0) {
   ImageI32 lab(m.width, m.height, 0);
   int n = 0;
   for (int y = 0; y < m.height; ++y)
@@ -189,7 +191,9 @@ inline ImageI32 components(const ImageU8& m, const ImageI16& disp, int step, int
           for (int dx = -1; dx <= 1; ++dx) {
             const int nx = cx + dx, ny = cy + dy;
             if (nx < 0 || ny < 0 || nx >= m.width || ny >= m.height || !m.at(nx, ny) || lab.at(nx, ny)) continue;
-            if (std::abs(disp.at(nx, ny) - disp.at(cx, cy)) > step) continue;
+            const int s = std::abs(disp.at(nx, ny) - disp.at(cx, cy));
+            if (s > step) continue;
+            if (rel > 0 && s > min_step && s > rel * std::max<int>(disp.at(nx, ny), disp.at(cx, cy))) continue;
             lab.at(nx, ny) = n;
             q.push_back({nx, ny});
           }

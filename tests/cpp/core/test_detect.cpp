@@ -167,6 +167,26 @@ TEST(DetectStages, UDisparityMatchesReference) {
   }
 }
 
+TEST(DetectStages, RelativeStepSeparatesFarNeighbours) {
+  // Two touching surfaces at 6.7 px and 5.7 px (7.5 m and 8.9 m on the robot): 1 px apart, so the
+  // absolute 1-px step joins them; 3 % of 6.7 px = 0.2 px does not (floor 0.25 px).
+  ImageU8 m(20, 6, 1);
+  ImageI16 d(20, 6);
+  for (int y = 0; y < 6; ++y)
+    for (int x = 0; x < 20; ++x) d.at(x, y) = std::int16_t(x < 10 ? 107 : 91);
+  int n = 0;
+  detect::connected_components(m, d, 16, &n);
+  EXPECT_EQ(n, 1);
+  const ImageI32 l = detect::connected_components(m, d, 16, &n, 0.03, 4);
+  EXPECT_EQ(n, 2);
+  EXPECT_NE(l.at(9, 3), l.at(10, 3));
+  // A 0.25-px step (the floor) still joins at any disparity.
+  for (int x = 10; x < 20; ++x)
+    for (int y = 0; y < 6; ++y) d.at(x, y) = 103;
+  detect::connected_components(m, d, 16, &n, 0.03, 4);
+  EXPECT_EQ(n, 1);
+}
+
 TEST(DetectStages, ComponentsMatchFloodFill) {
   std::mt19937 rng(11);
   for (int it = 0; it < 30; ++it) {
@@ -182,6 +202,13 @@ TEST(DetectStages, ComponentsMatchFloodFill) {
       const ImageI32 f = detect::connected_components(m, d, step, &nf), r = ref::components(m, d, step, &nr);
       EXPECT_EQ(nf, nr);
       EXPECT_EQ(f.data, r.data) << w << "x" << h << " step " << step;
+    }
+    // Relative step: 3 % / 10 % of the larger disparity, floor 4 Q4 (0.25 px), absolute cap 16.
+    for (double rel : {0.03, 0.1}) {
+      int nf = 0, nr = 0;
+      const ImageI32 f = detect::connected_components(m, d, 16, &nf, rel, 4), r = ref::components(m, d, 16, &nr, rel, 4);
+      EXPECT_EQ(nf, nr);
+      EXPECT_EQ(f.data, r.data) << w << "x" << h << " rel " << rel;
     }
   }
 }

@@ -66,6 +66,8 @@ struct DetectParams {
   int udisp_min_run_px = 6;        // and it lies in a horizontal run of kept cells at least this long
   // ---- components and distance ----
   double cc_max_step_px = 1.0;     // 8-neighbours join when their disparities differ by <= this [px]
+  double cc_max_rel_step = 0.05;   // ... and by <= this share of the larger disparity (0 = off)
+  double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
   int min_area_px = 200;           // smaller components are dropped
@@ -193,7 +195,9 @@ UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int 
 
 // 8-connected components of mask==1 whose neighbouring Q4 disparities differ by <= max_step_q4.
 // Two-pass union-find; labels 1.. numbered in raster order of each component's first pixel.
-ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count);
+// rel_step > 0: a step must also be <= max(min_step_q4, rel_step * the larger of the two disparities).
+ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count,
+                              double rel_step = 0.0, int min_step_q4 = 0);
 
 // Box, size, median disparity, Z, X and class per component (components >= min area), nearest
 // first; fills `labels` (0 none, id+1).

@@ -6,6 +6,7 @@
 // Two-pass union-find (first pass: provisional labels from the W, NW, N, NE neighbours and unions;
 // second pass: roots, renumbered in raster order of first appearance). The reference in the tests is
 // a flood fill, which numbers components the same way.
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <vector>
@@ -30,7 +31,8 @@ void unite(std::vector<int>& parent, int a, int b) {
 }
 }  // namespace
 
-ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count) {
+ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count, double rel_step,
+                              int min_step_q4) {
   const int w = mask.width, h = mask.height;
   ImageI32 lab(w, h, 0);
   std::vector<int> parent{0};
@@ -44,7 +46,12 @@ ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max
       auto consider = [&](int nx, int ny) {
         if (nx < 0 || nx >= w || ny < 0) return;
         const int nl = lab.at(nx, ny);
-        if (nl == 0 || std::abs(int(disp.at(nx, ny)) - int(d[x])) > max_step_q4) return;
+        if (nl == 0) return;
+        const int nd = disp.at(nx, ny), step = std::abs(nd - int(d[x]));
+        if (step > max_step_q4) return;
+        // Relative step (docs/detection.md "(e)"): a fixed 1 px is 15 % of depth at d = 6.7 px, so
+        // far neighbours 1-3 m apart joined; the step is also limited to rel_step of the larger d.
+        if (rel_step > 0 && step > min_step_q4 && step > rel_step * std::max(nd, int(d[x]))) return;
         if (cur == 0) cur = nl;
         else unite(parent, cur, nl);
       };

@@ -105,7 +105,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
 
   // (e) components, boxes, Z = f*B/d, classes.
   int n = 0;
-  r.components = detect::connected_components(r.kept, disp, int(std::lround(p.cc_max_step_px * kDispScale)), &n);
+  r.components = detect::connected_components(r.kept, disp, int(std::lround(p.cc_max_step_px * kDispScale)), &n,
+                                                   p.cc_max_rel_step, int(std::lround(p.cc_min_step_px * kDispScale)));
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
   lap(DetectStage::Objects);
   return r;

@@ -271,7 +271,10 @@ def u_disparity_filter(disp: np.ndarray, labels: np.ndarray, clusters: int, bins
 
 # ---- (e) components and distance -------------------------------------------------------------
 
-def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float) -> tuple[np.ndarray, int]:
+def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float, rel_step: float = 0.0,
+               min_step_px: float = 0.0) -> tuple[np.ndarray, int]:
+    """8-connected components; neighbours join when |d1 - d2| <= max_step_px and, with rel_step > 0,
+    also <= max(min_step_px, rel_step * max(d1, d2)) (relative step, docs/detection.md "(e)")."""
     h, w = mask.shape
     lab = np.zeros((h, w), np.int32)
     n = 0
@@ -287,7 +290,9 @@ def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float) -> tuple[
                 for dx in (-1, 0, 1):
                     yy, xx = y + dy, x + dx
                     if 0 <= yy < h and 0 <= xx < w and mask[yy, xx] and not lab[yy, xx] \
-                            and abs(disp[yy, xx] - disp[y, x]) <= max_step_px + 1e-9:
+                            and abs(disp[yy, xx] - disp[y, x]) <= max_step_px + 1e-9 \
+                            and (rel_step <= 0 or abs(disp[yy, xx] - disp[y, x]) <= min_step_px + 1e-9
+                                 or abs(disp[yy, xx] - disp[y, x]) <= rel_step * max(disp[yy, xx], disp[y, x]) + 1e-9):
                         lab[yy, xx] = n
                         q.append((yy, xx))
     return lab, n
@@ -371,7 +376,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     labels = np.full((h, w), -1, np.int64)
     labels[cand] = lab
     kept = u_disparity_filter(disp, labels, len(centres), bins, p)
-    comp, n = components(kept, disp, p.cc_max_step_px)
+    comp, n = components(kept, disp, p.cc_max_step_px, float(p.cc_max_rel_step), float(p.cc_min_step_px))
     roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
     comp = roots[comp] * (comp > 0)
     obstacles = []
