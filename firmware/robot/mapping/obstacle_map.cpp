@@ -6,6 +6,15 @@
 
 namespace fs::robot {
 
+void ObstacleMap::cell_window(Vec2 c, double r, int& x0, int& y0, int& x1, int& y1) const {
+  cell_of({c.x - r, c.y - r}, x0, y0);
+  cell_of({c.x + r, c.y + r}, x1, y1);
+  x0 = std::max(0, x0);
+  y0 = std::max(0, y0);
+  x1 = std::min(n_ - 1, x1);
+  y1 = std::min(n_ - 1, y1);
+}
+
 bool ObstacleMap::cell_of(Vec2 p, int& ix, int& iy) const {
   ix = static_cast<int>(std::floor((p.x - origin_.x) / p_.cell_m));
   iy = static_cast<int>(std::floor((p.y - origin_.y) / p_.cell_m));
@@ -47,12 +56,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
   if (rmax <= scan.min_range_m) return;
   const double c = std::cos(scan.pose.yaw), s = std::sin(scan.pose.yaw);
   int x0, y0, x1, y1;
-  cell_of({scan.pose.x - rmax, scan.pose.y - rmax}, x0, y0);
-  cell_of({scan.pose.x + rmax, scan.pose.y + rmax}, x1, y1);
-  x0 = std::max(0, x0);
-  y0 = std::max(0, y0);
-  x1 = std::min(n_ - 1, x1);
-  y1 = std::min(n_ - 1, y1);
+  cell_window(scan.pose.pos(), rmax, x0, y0, x1, y1);
   for (int iy = y0; iy <= y1; ++iy)
     for (int ix = x0; ix <= x1; ++ix) {
       const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
@@ -79,12 +83,7 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m)
   std::vector<CircleObstacle> out;
   if (!init_) return out;
   int x0, y0, x1, y1;
-  cell_of({centre.x - radius_m, centre.y - radius_m}, x0, y0);
-  cell_of({centre.x + radius_m, centre.y + radius_m}, x1, y1);
-  x0 = std::max(0, x0);
-  y0 = std::max(0, y0);
-  x1 = std::min(n_ - 1, x1);
-  y1 = std::min(n_ - 1, y1);
+  cell_window(centre, radius_m, x0, y0, x1, y1);
   for (int iy = y0; iy <= y1; ++iy)
     for (int ix = x0; ix <= x1; ++ix) {
       const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;

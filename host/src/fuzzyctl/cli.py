@@ -414,12 +414,7 @@ def compare_cmd(run_dir: Path | None, dataset_dir: Path | None, tolerances: Path
     table.add_column("metric", no_wrap=True, min_width=36)
     for col in ("value", "tolerance", "status"):
         table.add_column(col, no_wrap=True)
-    failing = {m.name for m, _ in c.failures()}
-    for m in c.metrics:
-        tol = c.tolerances.get(m.name)
-        value = "n/a" if m.value is None else (f"{m.value:.3f} %" if m.unit == "%" else f"{m.value:.4g}")
-        status = "" if tol is None else ("n/a" if m.value is None else "[red]FAIL[/]" if m.name in failing else "[green]ok[/]")
-        table.add_row(m.stage, m.name, value, tol.text() if tol else "", status)
+    failing = _fill_metrics_table(table, c)
     console.print(table)
     if c.ignored_config:
         console.print("firmware config keys not modelled by the reference: "
@@ -438,6 +433,17 @@ def compare_cmd(run_dir: Path | None, dataset_dir: Path | None, tolerances: Path
     console.print("all checked metrics within tolerance")
 
 
+def _fill_metrics_table(table: Table, c) -> set[str]:
+    """One row per compared metric (value, tolerance, ok/FAIL); returns the failing names."""
+    failing = {m.name for m, _ in c.failures()}
+    for m in c.metrics:
+        tol = c.tolerances.get(m.name)
+        value = "n/a" if m.value is None else (f"{m.value:.3f} %" if m.unit == "%" else f"{m.value:.4g}")
+        status = "" if tol is None else ("n/a" if m.value is None else "[red]FAIL[/]" if m.name in failing else "[green]ok[/]")
+        table.add_row(m.stage, m.name, value, tol.text() if tol else "", status)
+    return failing
+
+
 def _compare_detect(run_dir: Path, tolerances: Path | None) -> None:
     from .detect_compare import compare_detect
     from .errors import CheckFailed
@@ -447,12 +453,7 @@ def _compare_detect(run_dir: Path, tolerances: Path | None) -> None:
     table = Table(title=f"firmware vs reference (detection) — {c.dump_dir}")
     for col in ("stage", "metric", "value", "tolerance", "status"):
         table.add_column(col, no_wrap=True)
-    failing = {m.name for m, _ in c.failures()}
-    for m in c.metrics:
-        tol = c.tolerances.get(m.name)
-        value = "n/a" if m.value is None else (f"{m.value:.3f} %" if m.unit == "%" else f"{m.value:.4g}")
-        status = "" if tol is None else ("n/a" if m.value is None else "[red]FAIL[/]" if m.name in failing else "[green]ok[/]")
-        table.add_row(m.stage, m.name, value, tol.text() if tol else "", status)
+    failing = _fill_metrics_table(table, c)
     console.print(table)
     if failing:
         raise CheckFailed("comparison outside tolerance: " + ", ".join(

@@ -24,6 +24,21 @@
 
 namespace fs::detect {
 
+namespace {
+
+// eq. (22) in 1-D: index of the centre nearest to q; ties go to the lower index.
+int nearest_centre(std::int64_t q, const std::vector<std::int32_t>& c, int k) {
+  int bi = 0;
+  std::int64_t bd = std::abs(q - c[0]);
+  for (int i = 1; i < k; ++i) {
+    const std::int64_t dd = std::abs(q - c[std::size_t(i)]);
+    if (dd < bd) bd = dd, bi = i;
+  }
+  return bi;
+}
+
+}  // namespace
+
 KMeansResult kmeans_disparity(const ImageI16& disp, const ImageU8& candidates, int k, int max_iterations,
                               int merge_q4) {
   KMeansResult res;
@@ -57,12 +72,7 @@ KMeansResult kmeans_disparity(const ImageI16& disp, const ImageU8& candidates, i
     std::fill(sum.begin(), sum.end(), 0);
     std::fill(cnt.begin(), cnt.end(), 0);
     for (std::size_t q = 0; q < hist.size(); ++q) {
-      int bi = 0;
-      std::int64_t bd = std::abs(std::int64_t(q) - c[0]);
-      for (int i = 1; i < k; ++i) {
-        const std::int64_t dd = std::abs(std::int64_t(q) - c[std::size_t(i)]);
-        if (dd < bd) bd = dd, bi = i;
-      }
+      const int bi = nearest_centre(std::int64_t(q), c, k);
       assign[q] = std::uint8_t(bi);
       sum[std::size_t(bi)] += hist[q] * std::int64_t(q);
       cnt[std::size_t(bi)] += hist[q];
@@ -83,12 +93,7 @@ KMeansResult kmeans_disparity(const ImageI16& disp, const ImageU8& candidates, i
   // Final assignment with the final centres (the loop's last assignment used the previous ones).
   std::fill(cnt.begin(), cnt.end(), 0);
   for (std::size_t q = 0; q < hist.size(); ++q) {
-    int bi = 0;
-    std::int64_t bd = std::abs(std::int64_t(q) - c[0]);
-    for (int i = 1; i < k; ++i) {
-      const std::int64_t dd = std::abs(std::int64_t(q) - c[std::size_t(i)]);
-      if (dd < bd) bd = dd, bi = i;
-    }
+    const int bi = nearest_centre(std::int64_t(q), c, k);
     assign[q] = std::uint8_t(bi);
     cnt[std::size_t(bi)] += hist[q];
   }

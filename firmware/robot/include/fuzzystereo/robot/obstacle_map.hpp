@@ -49,6 +49,8 @@ class ObstacleMap {
 
  private:
   bool cell_of(Vec2 p, int& ix, int& iy) const;
+  // The cells of the square [c - r, c + r]^2, clamped to the grid (inclusive bounds).
+  void cell_window(Vec2 c, double r, int& x0, int& y0, int& x1, int& y1) const;
   ObstacleMapParams p_;
   bool init_ = false;
   Vec2 origin_;   // world position of cell (0, 0)'s corner
