@@ -232,14 +232,30 @@ void run_run(const RunOptions& o) {
 struct SuiteOptions {
   int count = 100, blocked = -1, jobs = 1;
   std::uint64_t seed = 1;
-  std::string config, json_out, record;
+  std::string config, json_out, record, only;
   double latency_ms = 100;
 };
 
 void run_suite(const SuiteOptions& o) {
   if (o.count < 0) throw UserError("--count must be >= 0");
   const int n_blocked = o.blocked >= 0 ? o.blocked : std::max(1, o.count / 10);
-  const int total = o.count + n_blocked;
+  // --only: a subset of the same seeded scenarios ("3,17,b0" = solvable 3 and 17, blocked 0).
+  std::vector<std::pair<int, bool>> picked;
+  if (!o.only.empty()) {
+    std::stringstream ss(o.only);
+    std::string tok;
+    while (std::getline(ss, tok, ',')) {
+      const bool b = !tok.empty() && tok[0] == 'b';
+      try {
+        const int idx = std::stoi(b ? tok.substr(1) : tok);
+        if (idx < 0) throw std::invalid_argument("negative");
+        picked.emplace_back(idx, b);
+      } catch (const std::exception&) {
+        throw UserError("--only: '" + tok + "' is not a scenario index (N for solvable, bN for blocked, N >= 0)");
+      }
+    }
+  }
+  const int total = picked.empty() ? o.count + n_blocked : static_cast<int>(picked.size());
   if (total == 0) throw UserError("nothing to run: --count and --blocked are 0");
   Config cfg = load_config(o.config);
   const int jobs = std::max(1, o.jobs);
@@ -259,8 +275,13 @@ void run_suite(const SuiteOptions& o) {
       const int i = next.fetch_add(1);
       if (i >= total) return;
       Item& it = items[static_cast<std::size_t>(i)];
-      it.blocked = i >= o.count;
-      it.index = it.blocked ? i - o.count : i;
+      if (picked.empty()) {
+        it.blocked = i >= o.count;
+        it.index = it.blocked ? i - o.count : i;
+      } else {
+        it.index = picked[static_cast<std::size_t>(i)].first;
+        it.blocked = picked[static_cast<std::size_t>(i)].second;
+      }
       try {
         LoopOptions lo;
         lo.scene = make_suite_scene(o.seed, it.index, it.blocked, cfg, &it.features);
@@ -421,6 +442,7 @@ void add_sim_suite_command(CLI::App& sim) {
   c->add_option("--latency-ms", o->latency_ms, "Simulated processing latency")->capture_default_str();
   c->add_option("--record", o->record, "Write each scenario's run record under this directory");
   c->add_option("--json", o->json_out, "Write the summary and every scenario as JSON");
+  c->add_option("--only", o->only, "Run only these scenarios of the seed: e.g. 3,17,b0 (b = without a free path)");
   c->callback([o] { run_suite(*o); });
 }
 

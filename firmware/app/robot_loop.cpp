@@ -81,19 +81,26 @@ StageStat stat_of(std::vector<double> v) {
   return s;
 }
 
-// Range over which the camera's depth is trusted for the map and the tracker [m]: at 4.5 m a
-// 0.25 px disparity error is 0.2 m of depth (320 x 180, f = 210 px, B = 0.12 m).
-constexpr double kMapRangeM = 4.5;
-// Detections wider than this are walls / rows of posts: the map holds them, the tracker does not
-// (its point model would turn the jittering fragments of a wall into ghost tracks) [m].
-constexpr double kTrackMaxWidthM = 0.8;
-// Tracks slower than this are left to the map (a static obstacle's velocity estimate is noise) [m/s].
-constexpr double kMovingSpeedMps = 0.04;
-// ... and need this many associated frames before their velocity is trusted.
-constexpr int kMovingMinHits = 4;
-// A moving track is planned with for this long after its last measurement (it coasts out of the
-// camera's view); older ones are guesses that would block free space [s].
-constexpr double kMovingMaxAgeS = 2.5;
+// Thresholds between perception and planning ([loop] in the config; docs/robot.md "How detections
+// reach the planner"). Defaults: a 4.5 m map range (at 4.5 m a 0.25 px disparity error is 0.2 m of
+// depth at 320 x 180, f = 210 px, B = 0.12 m); detections wider than 0.8 m are walls / rows of posts
+// that the map holds and the tracker does not (its point model would turn the jittering fragments
+// of a wall into ghost tracks); tracks slower than 0.04 m/s are left to the map; a track's velocity
+// is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
+struct LoopParams {
+  double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m;
+  int moving_min_hits;
+};
+LoopParams loop_params_from(const ConfigValues& v) {
+  LoopParams p;
+  p.map_range_m = v.num("loop.map_range_m");
+  p.track_max_width_m = v.num("loop.track_max_width_m");
+  p.moving_speed_mps = v.num("loop.moving_speed_mps");
+  p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
+  p.moving_max_age_s = v.num("loop.moving_max_age_s");
+  p.plan_radius_m = v.num("loop.plan_radius_m");
+  return p;
+}
 
 // Forward distance (ground plane, robot frame) and left offset of the camera point at column u,
 // row v, disparity d_px (docs/simulator.md: forward = Z cos p - Y sin p, left = -X).
@@ -115,7 +122,9 @@ double depth_sigma(const StereoCalib& calib, double Z) { return 0.25 * Z * Z / (
 // distance the column sees free, and (b) point measurements for the tracker, one per compact
 // detection (narrower than kTrackMaxWidthM), centred half its width behind the visible front.
 void measurements_of(const DetectResult& det, const ImageI16& disp, const StereoCalib& calib, const Pose2D& pose,
-                     int max_disparity_px, robot::CameraScan& scan, std::vector<robot::ObstacleMeasurement>& meas) {
+                     int max_disparity_px, const LoopParams& lp, robot::CameraScan& scan,
+                     std::vector<robot::ObstacleMeasurement>& meas) {
+  const double kMapRangeM = lp.map_range_m, kTrackMaxWidthM = lp.track_max_width_m;
   const int w = disp.width, h = disp.height;
   const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
   auto to_world = [&](double fwd, double left) {
@@ -313,6 +322,7 @@ LoopResult RobotLoop::run() {
 
   // ---- pipeline ----
   const Matcher matcher(I.cfg.matcher, load_fis_definition(""));
+  const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
   const robot::Planner planner(I.pp, I.rp);
@@ -387,7 +397,6 @@ LoopResult RobotLoop::run() {
   double scan_turned_rad = 0;
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
-  constexpr double kPlanRadiusM = 8.0;   // map cells within this distance go to the planner [m]
   double wl_prev = 0, wr_prev = 0;
   const int blocked_frames_to_stop = std::max(3, static_cast<int>(std::lround(3.0 / I.pp.control_period_s)));
   const auto wall_start = std::chrono::steady_clock::now();
@@ -482,13 +491,13 @@ LoopResult RobotLoop::run() {
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
-    measurements_of(det, mr.disp_final, I.calib, pose, I.cfg.matcher.cost.max_disparity, scan, meas);
+    measurements_of(det, mr.disp_final, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
       const Vec2 d = p - pose.pos();
       const double r = robot::norm(d);
-      if (r < scan.min_range_m + 0.3 || r > kMapRangeM) return false;
+      if (r < scan.min_range_m + 0.3 || r > lp.map_range_m) return false;
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, visible);
@@ -498,7 +507,7 @@ LoopResult RobotLoop::run() {
     // Static world from the map; moving obstacles (confirmed, fast enough, seen often enough to
     // trust the velocity) from the tracker, grown by their position uncertainty.
     s1 = std::chrono::steady_clock::now();
-    std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), kPlanRadiusM);
+    std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m);
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -507,7 +516,7 @@ LoopResult RobotLoop::run() {
         if (!tr.confirmed) continue;
         const CircleObstacle& o = tracked[k++];
         const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
-        if (tr.hits >= kMovingMinHits && robot::norm(o.vel) >= kMovingSpeedMps && age_s <= kMovingMaxAgeS)
+        if (tr.hits >= lp.moving_min_hits && robot::norm(o.vel) >= lp.moving_speed_mps && age_s <= lp.moving_max_age_s)
           obstacles.push_back(o);
       }
     }
@@ -767,10 +776,11 @@ sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const C
   sc.seed = s;
   sc.type = blocked ? "blocked" : (nav.features.empty() ? "open" : nav.features);
   while (!sc.type.empty() && sc.type.back() == ' ') sc.type.pop_back();
-  // The robot's camera: 320 x 180, 74 deg horizontal field of view, 12 cm baseline.
+  // The robot's camera: 320 x 180, [loop] suite_hfov_deg horizontal field of view (74.6 deg =
+  // f 210 px by default), 12 cm baseline.
   sc.camera.width = 320;
   sc.camera.height = 180;
-  sc.camera.focal_px = 210.0;
+  sc.camera.focal_px = 160.0 / std::tan(0.5 * cfg.values.num("loop.suite_hfov_deg") * M_PI / 180.0);
   sc.camera.cx = 159.5;
   sc.camera.cy = 89.5;
   sc.camera.baseline_m = 0.12;

@@ -11,9 +11,6 @@
 
 namespace fs::robot {
 namespace {
-// Smoothing of the measured radius (obstacle width / 2 changes with the view): EMA weight of a new
-// measurement. Not configurable: the planner inflates by the position uncertainty anyway.
-constexpr double kRadiusEma = 0.3;
 }  // namespace
 
 std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
@@ -81,7 +78,11 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     } else {
       tr.kf.update_position(m.p.x, m.p.y, var);
     }
-    tr.radius_m = (1.0 - kRadiusEma) * tr.radius_m + kRadiusEma * m.radius_m;
+    // A detection can only under-measure an obstacle's width (it is fragmented, partly outside the
+    // view or behind another obstacle), so the track keeps the largest radius measured. (An EMA of
+    // the measurements, used before, let a cylinder at the edge of the view shrink from 0.17 m to
+    // 0.13 m, and the planner then turned the robot into it.)
+    tr.radius_m = std::max(tr.radius_m, m.radius_m);
     tr.distance_class = m.distance_class;
     ++tr.hits;
     tr.misses = 0;
