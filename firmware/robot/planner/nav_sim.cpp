@@ -86,9 +86,10 @@ NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParam
     }
     const int n_moving = static_cast<int>(uni(rng, 0, 3.99));
     for (int i = 0; i < n_moving; ++i) {
-      // crosses the start-goal line at a random point, roughly perpendicular, slower than the robot
+      // crosses the start-goal line at a random point, roughly perpendicular, at 0.05-0.30 m/s
+      // (independent of the robot's speed limit: a slower robot meets the same world)
       const Vec2 cross = s + uni(rng, 0.3, 0.8) * norm(sc.goal - s) * dir;
-      const double ang = uni(rng, -0.6, 0.6), speed = uni(rng, 0.1, 0.6) * rp.max_speed_mps;
+      const double ang = uni(rng, -0.6, 0.6), speed = 0.5 * uni(rng, 0.1, 0.6);
       const double side = uni(rng, 0, 1) < 0.5 ? -1.0 : 1.0;
       const Vec2 mdir = std::cos(ang) * (side * nrm) + std::sin(ang) * dir;
       const double r = uni(rng, 0.12, 0.3);
