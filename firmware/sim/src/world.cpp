@@ -385,6 +385,10 @@ struct FastTracer {
   double far_m;
   const std::array<Vec3, 2>* lo;    // per obstacle and camera: the camera origin in the obstacle frame
   const std::array<double, 2>* cc;  // per obstacle and camera: lo.x^2 + lo.y^2 - r^2 (cylinders)
+  // Per obstacle and camera: a lower bound of the depth of any hit on it (its bounding box's
+  // nearest corner depth, less 1 um and 1e-9 relative for rounding): a ray that already has a
+  // hit nearer than this cannot get a new nearest hit from it.
+  const std::array<double, 2>* zskip;
 
   // Tracer::trace() over the candidate obstacles `cand` (ascending), without normal and surface
   // coordinates (surface() adds them); `dir` receives the ray direction.
@@ -406,6 +410,7 @@ struct FastTracer {
       const int i = cand[j];
       const Placed& o = placed[static_cast<std::size_t>(i)];
       if (u < o.u0[cam] || u > o.u1[cam] || v < o.v0[cam] || v > o.v1[cam]) continue;
+      if (h.t < zskip[i][cam]) continue;
       if (o.cyl) first_hit_cylinder(o, i, lo[i][cam], cc[i][cam], dir, h);
       else first_hit_box(o, i, lo[i][cam], dir, h);
     }
@@ -446,16 +451,29 @@ double normal_quantile(double p) {
 // Zero-mean unit Gaussian for (seed, camera, pixel, channel): a hash of those picks one of 2^16
 // equally likely standard-normal quantiles Phi^-1((i + 0.5) / 2^16), tabulated once (one hash
 // per sample instead of a log and a cos per Box-Muller pair).
-double gauss(std::uint64_t seed, int cam, int x, int y, int ch) {
+const float* gauss_table() {
   static const std::vector<float> table = [] {
     std::vector<float> t(1u << 16);
     for (std::size_t i = 0; i < t.size(); ++i)
       t[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / static_cast<double>(t.size())));
     return t;
   }();
+  return table.data();
+}
+
+double gauss(std::uint64_t seed, int cam, int x, int y, int ch) {
   const std::uint64_t k = seed ^ (static_cast<std::uint64_t>(cam * 4 + ch) << 56);
   const double u = detail::hash01(x, y, k);
-  return table[static_cast<std::size_t>(u * 65536.0)];
+  return gauss_table()[static_cast<std::size_t>(u * 65536.0)];
+}
+
+// gauss() with the table passed in and the index taken from the hash bits: hash01 = (m >> 11) *
+// 2^-53 is exact, so floor(hash01 * 2^16) = m >> 48 exactly (same sample, tested).
+inline double gauss_fast(const float* table, std::uint64_t seed, int cam, int x, int y, int ch) {
+  const std::uint64_t k = seed ^ (static_cast<std::uint64_t>(cam * 4 + ch) << 56) ^
+                          (static_cast<std::uint64_t>(static_cast<std::int64_t>(x)) * 0x9E3779B97F4A7C15ULL) ^
+                          (static_cast<std::uint64_t>(static_cast<std::int64_t>(y)) * 0xC2B2AE3D27D4EB4FULL);
+  return table[detail::mix64(k) >> 48];
 }
 
 std::uint8_t to_u8(double c, const CameraRadiometry& r, double noise) {
@@ -463,6 +481,18 @@ std::uint8_t to_u8(double c, const CameraRadiometry& r, double noise) {
   if (r.gamma != 1.0) c = std::pow(c, r.gamma);
   const double v = r.gain * c * 255.0 + r.bias + noise;
   return static_cast<std::uint8_t>(std::clamp(std::floor(v + 0.5), 0.0, 255.0));
+}
+
+// to_u8() without floor: w < 0 rounds to <= -1 and clamps to 0, w >= 255 clamps to 255, and in
+// between truncation is floor (same value, tested).
+inline std::uint8_t to_u8_fast(double c, const CameraRadiometry& r, double noise) {
+  c = detail::clamp01(c);
+  if (r.gamma != 1.0) c = std::pow(c, r.gamma);
+  const double v = r.gain * c * 255.0 + r.bias + noise;
+  const double w = v + 0.5;
+  if (w < 0.0) return 0;
+  if (w >= 255.0) return 255;
+  return static_cast<std::uint8_t>(static_cast<int>(w));
 }
 
 }  // namespace
@@ -603,13 +633,22 @@ struct Canvas {
 
   // Writes pixel (x, y) of camera k: colour `acc` with sensor noise and, for the left camera, the
   // ground truth of the pixel-centre hit.
-  void store(const Scene& sc, const std::vector<Placed>& placed, int k, int x, int y, Color acc, const Hit& centre) {
+  // `fast`: gauss_fast/to_u8_fast instead of the reference gauss/to_u8.
+  void store(const Scene& sc, const std::vector<Placed>& placed, int k, int x, int y, Color acc, const Hit& centre,
+             bool fast) {
     const CameraRadiometry& rad = k == 0 ? sc.radiometric.left : sc.radiometric.right;
     Rgb8& out = (k == 0 ? res.left : res.right).at(x, y);
     const double sig = rad.noise_sigma;
-    out.r = to_u8(acc.r, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 0) : 0.0);
-    out.g = to_u8(acc.g, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 1) : 0.0);
-    out.b = to_u8(acc.b, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 2) : 0.0);
+    if (fast) {
+      const float* table = gauss_table();
+      out.r = to_u8_fast(acc.r, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 0) : 0.0);
+      out.g = to_u8_fast(acc.g, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 1) : 0.0);
+      out.b = to_u8_fast(acc.b, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 2) : 0.0);
+    } else {
+      out.r = to_u8(acc.r, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 0) : 0.0);
+      out.g = to_u8(acc.g, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 1) : 0.0);
+      out.b = to_u8(acc.b, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 2) : 0.0);
+    }
     if (k != 0) return;
     // Ground truth: the left ray through the pixel centre.
     const Hit& g = centre;
@@ -720,7 +759,7 @@ RenderResult World::render_reference(const Pose2& pose, double time_s, int threa
                                  f.amb_c, f.horizon);
         acc = (1.0 / (n * n)) * acc;
       }
-      cv.store(sc, f.placed, k, x, y, acc, centre);
+      cv.store(sc, f.placed, k, x, y, acc, centre, false);
     }
   }
   return cv.finish(f);
@@ -733,17 +772,24 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
   const std::size_t no = f.placed.size();
   // Camera origins in the obstacle frames, with the expressions of intersect_box/_cylinder.
   std::vector<std::array<Vec3, 2>> lo(no);
-  std::vector<std::array<double, 2>> cc(no);
+  std::vector<std::array<double, 2>> cc(no), zskip(no);
   for (std::size_t i = 0; i < no; ++i) {
     const Placed& o = f.placed[i];
     for (int k = 0; k < 2; ++k) {
-      const Vec3 l = to_local(o, f.frames[k].origin - o.base);
+      const CameraFrame& cf = f.frames[k];
+      const Vec3 l = to_local(o, cf.origin - o.base);
       lo[i][k] = o.cyl ? l : l - Vec3{0, 0, o.h * 0.5};
       cc[i][k] = l.x * l.x + l.y * l.y - o.r * o.r;
+      double zmin = kInf;
+      for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 c{(corner & 1) ? o.hx : -o.hx, (corner & 2) ? o.hy : -o.hy, (corner & 4) ? o.h : 0.0};
+        zmin = std::min(zmin, detail::dot(o.base + to_world(o, c) - cf.origin, cf.zc));
+      }
+      zskip[i][k] = zmin - 1e-6 - 1e-9 * std::fabs(zmin);
     }
   }
   const TileLists tiles[2] = {build_tiles(f.placed, 0, W, H), build_tiles(f.placed, 1, W, H)};
-  const FastTracer ft{sc, f.placed, sc.render.far_m, lo.data(), cc.data()};
+  const FastTracer ft{sc, f.placed, sc.render.far_m, lo.data(), cc.data(), zskip.data()};
   const Tracer tr{sc, f.placed, sc.render.far_m};  // shading
   Canvas cv(W, H, calib());
   const int n = sc.render.supersample;
@@ -761,11 +807,11 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
     const CameraFrame& cf = f.frames[k];
     const TileLists& tl = tiles[k];
     const int* trow = tl.start.data() + (y / kTile) * tl.tw;
+    Hit sub[kMaxSub * kMaxSub];  // [0, n * n) written for every pixel before use
+    Vec3 sdir[kMaxSub * kMaxSub];
     for (int x = 0; x < W; ++x) {
       const int* cand = tl.items.data() + trow[x / kTile];
       const int ncand = trow[x / kTile + 1] - trow[x / kTile];
-      Hit sub[kMaxSub * kMaxSub];
-      Vec3 sdir[kMaxSub * kMaxSub];
       Vec3 cdir;
       bool same = true;
       Hit centre = ft.trace(cf, k, x, y, cand, ncand, cdir);
@@ -785,7 +831,7 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
         }
         acc = (1.0 / (n * n)) * acc;
       }
-      cv.store(sc, f.placed, k, x, y, acc, centre);
+      cv.store(sc, f.placed, k, x, y, acc, centre, true);
     }
   }
   return cv.finish(f);
