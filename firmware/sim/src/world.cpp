@@ -353,6 +353,8 @@ inline void first_hit_cylinder(const Placed& o, int idx, Vec3 lo, double cc, Vec
   if (std::fabs(ld.z) > kEps) {
     for (int cap = 0; cap < 2; ++cap) {
       const double zc = cap == 0 ? o.h : 0.0;
+      // t <= 0 unless the ray heads towards the cap plane: skip the division then
+      if (!((zc - lo.z > 0.0 && ld.z > 0.0) || (zc - lo.z < 0.0 && ld.z < 0.0))) continue;
       const double t = (zc - lo.z) / ld.z;
       if (t <= 1e-6 || t >= best.t) continue;
       const double px = lo.x + t * ld.x, py = lo.y + t * ld.y;
@@ -415,6 +417,29 @@ struct FastTracer {
       else first_hit_box(o, i, lo[i][cam], dir, h);
     }
     return h;
+  }
+
+  // What every ray of image row v (sample space) hits when no obstacle is in the way: -2 when all
+  // see the sky (dir.z >= -kEps: dir.z does not depend on u, the camera X axis being horizontal),
+  // -1 when all hit the ground within far_m (the ground range grows with |u - cx|, so checking both
+  // image ends, with a 1e-9 margin for rounding, covers the row), 0 when it depends on u.
+  int row_class(const CameraFrame& cf, double v) const {
+    const CameraSpec& c = sc.camera;
+    const double b = (v - c.cy) / c.focal_px;
+    int cls[2];
+    for (int e = 0; e < 2; ++e) {
+      const double u = e == 0 ? -0.5 : c.width - 0.5;
+      const double a = (u - c.cx) / c.focal_px;
+      const Vec3 dir = a * cf.xc + b * cf.yc + cf.zc;
+      if (!(dir.z < -kEps)) {
+        cls[e] = -2;
+        continue;
+      }
+      const double t = -cf.origin.z / dir.z;
+      const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
+      cls[e] = range <= far_m * (1.0 - 1e-9) ? -1 : 0;
+    }
+    return cls[0] == cls[1] ? cls[0] : 0;
   }
 
   void surface(int cam, Vec3 dir, Hit& h) const {
@@ -601,6 +626,17 @@ FrameSetup setup_frame(const Scene& sc, const Pose2& pose, double time_s, bool c
       else if (behind && clip) clipped_bounds(p, cf, cam, u0, u1, v0, v1);
       else if (behind) { u0 = v0 = -kInf; u1 = v1 = kInf; }
       else { u0 -= 2; v0 -= 2; u1 += 2; v1 += 2; }
+      if (clip && p.cyl) {
+        // A cylinder also lies in its bounding square turned by 45 deg: keep only what both
+        // screen boxes cover (still every sample that can hit it).
+        Placed q = p;
+        q.c = (p.c - p.s) * std::sqrt(0.5);
+        q.s = (p.s + p.c) * std::sqrt(0.5);
+        double a0, a1, b0, b1;
+        clipped_bounds(q, cf, cam, a0, a1, b0, b1);
+        u0 = std::max(u0, a0); u1 = std::min(u1, a1); v0 = std::max(v0, b0); v1 = std::min(v1, b1);
+        if (u0 > u1 || v0 > v1) { u0 = v0 = kInf; u1 = v1 = -kInf; }
+      }
       p.u0[k] = u0; p.u1[k] = u1; p.v0[k] = v0; p.v1[k] = v1;
     }
     placed.push_back(p);
@@ -795,6 +831,20 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
   const int n = sc.render.supersample;
   double off[kMaxSub];  // sub-sample offsets, as the reference computes them
   for (int s = 0; s < n; ++s) off[s] = (s + 0.5) / n;
+  // Per camera and pixel row: the row_class() of each sub-sample row, and the class shared by the
+  // centre and all sub-sample rows (or 0).
+  std::vector<int> pixel_row_class(static_cast<std::size_t>(2 * H));
+  std::vector<int> sub_row_class(static_cast<std::size_t>(2 * H * n));
+  for (int k = 0; k < 2; ++k)
+    for (int y = 0; y < H; ++y) {
+      int cls = ft.row_class(f.frames[k], y);
+      for (int sy = 0; sy < n; ++sy) {
+        const int c = ft.row_class(f.frames[k], y + off[sy] - 0.5);
+        sub_row_class[static_cast<std::size_t>((k * H + y) * n + sy)] = c;
+        if (c != cls) cls = 0;
+      }
+      pixel_row_class[static_cast<std::size_t>(k * H + y)] = cls;
+    }
   const int rows = 2 * H;
 #if defined(FS_HAVE_OPENMP)
   const int nt = omp_threads(threads);
@@ -806,6 +856,9 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
     const int k = row / H, y = row % H;  // camera, image row
     const CameraFrame& cf = f.frames[k];
     const TileLists& tl = tiles[k];
+    const int row_cls = pixel_row_class[static_cast<std::size_t>(row)];
+    const int* sub_cls = sub_row_class.data() + static_cast<std::size_t>(row) * n;
+    bool lazy[kMaxSub * kMaxSub];  // sub-sample known to see sub_cls (ground/sky), not traced yet
     const int* trow = tl.start.data() + (y / kTile) * tl.tw;
     Hit sub[kMaxSub * kMaxSub];  // [0, n * n) written for every pixel before use
     Vec3 sdir[kMaxSub * kMaxSub];
@@ -815,9 +868,28 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
       Vec3 cdir;
       bool same = true;
       Hit centre = ft.trace(cf, k, x, y, cand, ncand, cdir);
-      for (int sy = 0, i = 0; sy < n; ++sy)
+      // Every sample of the pixel sees the same ground or sky when its rows agree (row_cls) and no
+      // obstacle's screen box reaches into the pixel: then the sub-sample rays are not traced.
+      bool clean = row_cls != 0;
+      for (int j = 0; j < ncand && clean; ++j) {
+        const Placed& o = f.placed[static_cast<std::size_t>(cand[j])];
+        clean = o.u0[k] > x + 0.5 || o.u1[k] < x - 0.5 || o.v0[k] > y + 0.5 || o.v1[k] < y - 0.5;
+      }
+      for (int sy = 0, i = 0; sy < n && !clean; ++sy)
         for (int sx = 0; sx < n; ++sx, ++i) {
-          sub[i] = ft.trace(cf, k, x + off[sx] - 0.5, y + off[sy] - 0.5, cand, ncand, sdir[i]);
+          const double u = x + off[sx] - 0.5, v = y + off[sy] - 0.5;
+          // A sample on a ground/sky row that no obstacle's screen box holds sees that class.
+          lazy[i] = sub_cls[sy] != 0;
+          for (int j = 0; j < ncand && lazy[i]; ++j) {
+            const Placed& o = f.placed[static_cast<std::size_t>(cand[j])];
+            lazy[i] = u < o.u0[k] || u > o.u1[k] || v < o.v0[k] || v > o.v1[k];
+          }
+          if (lazy[i]) {
+            sub[i].what = sub_cls[sy];
+            sub[i].face = 0;
+          } else {
+            sub[i] = ft.trace(cf, k, u, v, cand, ncand, sdir[i]);
+          }
           same = same && sub[i].what == centre.what && sub[i].face == centre.face;
         }
       Color acc;
@@ -826,6 +898,7 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
         acc = tr.shade_dir(cf, cdir, centre, f.sun, f.sun_c, f.amb_c, f.horizon);
       } else {
         for (int i = 0; i < n * n; ++i) {
+          if (lazy[i]) sub[i] = ft.trace(cf, k, x + off[i % n] - 0.5, y + off[i / n] - 0.5, cand, ncand, sdir[i]);
           ft.surface(k, sdir[i], sub[i]);
           acc = acc + tr.shade_dir(cf, sdir[i], sub[i], f.sun, f.sun_c, f.amb_c, f.horizon);
         }
