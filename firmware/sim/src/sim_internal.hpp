@@ -47,8 +47,19 @@ inline double hash01(std::int64_t ix, std::int64_t iy, std::uint64_t seed) {
   return static_cast<double>(mix64(k) >> 11) * 0x1.0p-53;
 }
 
-// Bilinear value noise with a smooth fade, in [0, 1], lattice spacing 1.
-double value_noise(double x, double y, std::uint64_t seed);
+// Bilinear value noise with a smooth fade, in [0, 1], lattice spacing 1. Inline: it runs for
+// every octave of every textured pixel.
+inline double value_noise(double x, double y, std::uint64_t seed) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+  double tx = x - fx, ty = y - fy;
+  tx = tx * tx * (3.0 - 2.0 * tx);
+  ty = ty * ty * (3.0 - 2.0 * ty);
+  const double a = hash01(ix, iy, seed), b = hash01(ix + 1, iy, seed);
+  const double c = hash01(ix, iy + 1, seed), d = hash01(ix + 1, iy + 1, seed);
+  const double top = a + (b - a) * tx, bot = c + (d - c) * tx;
+  return top + (bot - top) * ty;
+}
 
 // Level of detail: weight of a pattern of wavelength `wl` [m] seen with a pixel footprint `fp` [m]:
 // 1 when the wavelength spans >= 2 pixels, 0 at <= 1 pixel (faded to its mean, no aliasing).

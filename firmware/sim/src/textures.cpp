@@ -7,18 +7,6 @@
 
 namespace fs::sim::detail {
 
-double value_noise(double x, double y, std::uint64_t seed) {
-  const double fx = std::floor(x), fy = std::floor(y);
-  const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
-  double tx = x - fx, ty = y - fy;
-  tx = tx * tx * (3.0 - 2.0 * tx);
-  ty = ty * ty * (3.0 - 2.0 * ty);
-  const double a = hash01(ix, iy, seed), b = hash01(ix + 1, iy, seed);
-  const double c = hash01(ix, iy + 1, seed), d = hash01(ix + 1, iy + 1, seed);
-  const double top = a + (b - a) * tx, bot = c + (d - c) * tx;
-  return top + (bot - top) * ty;
-}
-
 double fbm(double x, double y, std::uint64_t seed, double wl, int octaves, double fp) {
   double sum = 0.0, amp = 0.5;
   for (int k = 0; k < octaves; ++k, wl *= 0.5, amp *= 0.6) {

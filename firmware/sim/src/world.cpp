@@ -9,6 +9,7 @@
 #include "fuzzystereo/sim/world.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -176,6 +177,13 @@ struct Tracer {
               Color horizon) const {
     const CameraSpec& c = sc.camera;
     const Vec3 dir = ((u - c.cx) / c.focal_px) * cf.xc + ((v - c.cy) / c.focal_px) * cf.yc + cf.zc;
+    return shade_dir(cf, dir, h, sun, sun_c, amb_c, horizon);
+  }
+
+  // Colour of a hit along the (unnormalised) ray `dir`; h.n, h.s, h.tt must be set.
+  Color shade_dir(const CameraFrame& cf, Vec3 dir, const Hit& h, Vec3 sun, Color sun_c, Color amb_c,
+                  Color horizon) const {
+    const CameraSpec& c = sc.camera;
     const double len = detail::norm(dir);
     const Vec3 d = (1.0 / len) * dir;
     if (h.what == -2) return detail::sky_color(sc.sky.kind, d, sun, sc.seed);
@@ -201,6 +209,244 @@ struct Tracer {
     const double horiz = dist * std::sqrt(std::max(0.0, 1.0 - d.z * d.z));
     const double haze = detail::smoothstep(0.3 * far_m, far_m, horiz);
     return detail::mix(col, horizon, haze);
+  }
+};
+
+// ---- Fast path of render() ------------------------------------------------------------------------
+// The reference above (Tracer, used by World::render_reference) tests every sample ray against every
+// obstacle whose screen box contains it and computes normal and surface coordinates (an atan2 for a
+// cylinder) for every closer hit on the way. The fast path gives bit-identical results (tested
+// against the reference) by doing the same floating-point operations in the same order, only fewer
+// of them:
+//  - per camera, the image is cut into kTile x kTile pixel tiles and each tile lists the obstacles
+//    whose screen box overlaps it (in scene order, so ties resolve as in the reference); a sample
+//    still applies the reference's own box test to each listed obstacle;
+//  - obstacles straddling the camera plane (the reference draws them over the whole image) get the
+//    screen box of the part of their bounding box in front of the camera (clipped_bounds), which
+//    still contains every sample that can hit them;
+//  - the ray parameter, obstacle and face of the first hit are found first; the normal and surface
+//    coordinates only for the hit that is shaded (the reference's formulas, same operands);
+//  - the camera origin in each obstacle's frame (and the cylinder's constant quadratic term) is
+//    computed once per frame with the reference's expressions.
+
+// Depth of the clipping plane: every hit has depth t > 1e-6 (the intersection tests), so the part
+// of a bounding box nearer than this can hold no hit.
+constexpr double kClipZ = 1e-7;
+
+// Screen bounds (+2 px margin, sample space) of the part of an obstacle's bounding box in front of
+// the plane Z = kClipZ of camera cf: the convex hull of its corners in front and of the crossings of
+// its 12 edges with that plane. Empty (u0 > u1) when nothing is in front.
+void clipped_bounds(const Placed& p, const CameraFrame& cf, const CameraSpec& cam, double& u0, double& u1, double& v0,
+                    double& v1) {
+  Vec3 q[8];  // corners in the camera frame
+  for (int corner = 0; corner < 8; ++corner) {
+    const Vec3 l{(corner & 1) ? p.hx : -p.hx, (corner & 2) ? p.hy : -p.hy, (corner & 4) ? p.h : 0.0};
+    const Vec3 rel = p.base + to_world(p, l) - cf.origin;
+    q[corner] = {detail::dot(rel, cf.xc), detail::dot(rel, cf.yc), detail::dot(rel, cf.zc)};
+  }
+  u0 = v0 = kInf;
+  u1 = v1 = -kInf;
+  auto add = [&](double X, double Y, double Z) {
+    const double u = cam.cx + cam.focal_px * X / Z, v = cam.cy + cam.focal_px * Y / Z;
+    u0 = std::min(u0, u); u1 = std::max(u1, u); v0 = std::min(v0, v); v1 = std::max(v1, v);
+  };
+  for (int a = 0; a < 8; ++a) {
+    if (q[a].z >= kClipZ) add(q[a].x, q[a].y, q[a].z);
+    for (int bit = 1; bit < 8; bit <<= 1) {  // the 3 edges from corner a to a corner with that bit set
+      if (a & bit) continue;
+      const Vec3 qa = q[a], qb = q[a | bit];
+      if ((qa.z >= kClipZ) == (qb.z >= kClipZ)) continue;
+      const double f = (kClipZ - qa.z) / (qb.z - qa.z);
+      add(qa.x + f * (qb.x - qa.x), qa.y + f * (qb.y - qa.y), kClipZ);
+    }
+  }
+  if (u0 > u1) return;
+  u0 -= 2; v0 -= 2; u1 += 2; v1 += 2;
+}
+
+constexpr int kTile = 8;  // pixels
+
+// Per camera: for each kTile x kTile tile, the indices of the obstacles whose screen bounds overlap
+// the tile's sample area (pixel centre +- 0.5 px), as ranges into one array.
+struct TileLists {
+  int tw = 0;
+  std::vector<int> start;  // tile i lists items[start[i] .. start[i + 1])
+  std::vector<int> items;
+};
+
+TileLists build_tiles(const std::vector<Placed>& placed, int cam, int W, int H) {
+  TileLists tl;
+  tl.tw = (W + kTile - 1) / kTile;
+  const int th = (H + kTile - 1) / kTile;
+  tl.start.reserve(static_cast<std::size_t>(tl.tw * th + 1));
+  for (int ty = 0; ty < th; ++ty)
+    for (int tx = 0; tx < tl.tw; ++tx) {
+      tl.start.push_back(static_cast<int>(tl.items.size()));
+      const double lu = tx * kTile - 0.5, hu = std::min(W, (tx + 1) * kTile) - 0.5;
+      const double lv = ty * kTile - 0.5, hv = std::min(H, (ty + 1) * kTile) - 0.5;
+      for (std::size_t i = 0; i < placed.size(); ++i) {
+        const Placed& o = placed[i];
+        if (o.u0[cam] <= hu && o.u1[cam] >= lu && o.v0[cam] <= hv && o.v1[cam] >= lv) tl.items.push_back(static_cast<int>(i));
+      }
+    }
+  tl.start.push_back(static_cast<int>(tl.items.size()));
+  return tl;
+}
+
+// intersect_box() without the normal and surface coordinates; lo = ray origin in the box frame.
+inline void first_hit_box(const Placed& o, int idx, Vec3 lo, Vec3 dir, Hit& best) {
+  const Vec3 ld = to_local(o, dir);
+  const double half[3] = {o.hx, o.hy, o.h * 0.5};
+  const double po[3] = {lo.x, lo.y, lo.z}, pd[3] = {ld.x, ld.y, ld.z};
+  double tnear = -kInf, tfar = kInf;
+  int axis = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (std::fabs(pd[i]) < kEps) {
+      if (std::fabs(po[i]) > half[i]) return;
+      continue;
+    }
+    double t1 = (-half[i] - po[i]) / pd[i], t2 = (half[i] - po[i]) / pd[i];
+    if (t1 > t2) std::swap(t1, t2);
+    if (t1 > tnear) { tnear = t1; axis = i; }
+    tfar = std::min(tfar, t2);
+  }
+  if (tnear > tfar || tnear <= 1e-6 || tnear >= best.t) return;
+  best.t = tnear;
+  best.what = idx;
+  best.face = axis * 2 + (pd[axis] > 0 ? 0 : 1);
+}
+
+// The rest of intersect_box() for the winning hit.
+inline void surface_box(const Placed& o, Vec3 lo, Vec3 dir, Hit& h) {
+  const Vec3 ld = to_local(o, dir);
+  const int axis = h.face / 2;
+  const double sign = (h.face & 1) ? 1.0 : -1.0;
+  const Vec3 p = lo + h.t * ld;
+  Vec3 ln{0, 0, 0};
+  const double z_from_base = p.z + o.h * 0.5;
+  if (axis == 0) { ln.x = sign; h.s = p.y; h.tt = z_from_base; }
+  else if (axis == 1) { ln.y = sign; h.s = p.x; h.tt = z_from_base; }
+  else { ln.z = sign; h.s = p.x; h.tt = p.y; }
+  h.n = to_world(o, ln);
+}
+
+// intersect_cylinder() without the normal and surface coordinates; lo = ray origin in the obstacle
+// frame, cc = lo.x^2 + lo.y^2 - r^2.
+inline void first_hit_cylinder(const Placed& o, int idx, Vec3 lo, double cc, Vec3 dir, Hit& best) {
+  const Vec3 ld = to_local(o, dir);
+  const double a = ld.x * ld.x + ld.y * ld.y;
+  const double b = 2.0 * (lo.x * ld.x + lo.y * ld.y);
+  if (a > kEps) {
+    const double disc = b * b - 4.0 * a * cc;
+    if (disc >= 0.0) {
+      const double t0 = (-b - std::sqrt(disc)) / (2.0 * a);
+      if (t0 > 1e-6 && t0 < best.t) {
+        const double pz = lo.z + t0 * ld.z;
+        if (pz >= 0.0 && pz <= o.h) {
+          best.t = t0;
+          best.what = idx;
+          best.face = 0;
+        }
+      }
+    }
+  }
+  if (std::fabs(ld.z) > kEps) {
+    for (int cap = 0; cap < 2; ++cap) {
+      const double zc = cap == 0 ? o.h : 0.0;
+      // t <= 0 unless the ray heads towards the cap plane: skip the division then
+      if (!((zc - lo.z > 0.0 && ld.z > 0.0) || (zc - lo.z < 0.0 && ld.z < 0.0))) continue;
+      const double t = (zc - lo.z) / ld.z;
+      if (t <= 1e-6 || t >= best.t) continue;
+      const double px = lo.x + t * ld.x, py = lo.y + t * ld.y;
+      if (px * px + py * py > o.r * o.r) continue;
+      best.t = t;
+      best.what = idx;
+      best.face = 1 + cap;
+    }
+  }
+}
+
+// The rest of intersect_cylinder() for the winning hit.
+inline void surface_cylinder(const Placed& o, Vec3 lo, Vec3 dir, Hit& h) {
+  const Vec3 ld = to_local(o, dir);
+  const Vec3 p = lo + h.t * ld;
+  if (h.face == 0) {
+    h.n = to_world(o, Vec3{p.x / o.r, p.y / o.r, 0.0});
+    h.s = std::atan2(p.y, p.x) * o.r;
+    h.tt = p.z;
+  } else {
+    h.n = Vec3{0, 0, h.face == 1 ? 1.0 : -1.0};
+    h.s = p.x;
+    h.tt = p.y;
+  }
+}
+
+struct FastTracer {
+  const Scene& sc;
+  const std::vector<Placed>& placed;
+  double far_m;
+  const std::array<Vec3, 2>* lo;    // per obstacle and camera: the camera origin in the obstacle frame
+  const std::array<double, 2>* cc;  // per obstacle and camera: lo.x^2 + lo.y^2 - r^2 (cylinders)
+  // Per obstacle and camera: a lower bound of the depth of any hit on it (its bounding box's
+  // nearest corner depth, less 1 um and 1e-9 relative for rounding): a ray that already has a
+  // hit nearer than this cannot get a new nearest hit from it.
+  const std::array<double, 2>* zskip;
+
+  // Tracer::trace() over the candidate obstacles `cand` (ascending), without normal and surface
+  // coordinates (surface() adds them); `dir` receives the ray direction.
+  Hit trace(const CameraFrame& cf, int cam, double u, double v, const int* cand, int ncand, Vec3& dir) const {
+    const CameraSpec& c = sc.camera;
+    const double a = (u - c.cx) / c.focal_px, b = (v - c.cy) / c.focal_px;
+    dir = a * cf.xc + b * cf.yc + cf.zc;
+    Hit h;
+    if (dir.z < -kEps) {
+      const double t = -cf.origin.z / dir.z;
+      const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
+      if (range <= far_m) {
+        h.t = t;
+        h.what = -1;
+        h.n = {0, 0, 1};
+      }
+    }
+    for (int j = 0; j < ncand; ++j) {
+      const int i = cand[j];
+      const Placed& o = placed[static_cast<std::size_t>(i)];
+      if (u < o.u0[cam] || u > o.u1[cam] || v < o.v0[cam] || v > o.v1[cam]) continue;
+      if (h.t < zskip[i][cam]) continue;
+      if (o.cyl) first_hit_cylinder(o, i, lo[i][cam], cc[i][cam], dir, h);
+      else first_hit_box(o, i, lo[i][cam], dir, h);
+    }
+    return h;
+  }
+
+  // What every ray of image row v (sample space) hits when no obstacle is in the way: -2 when all
+  // see the sky (dir.z >= -kEps: dir.z does not depend on u, the camera X axis being horizontal),
+  // -1 when all hit the ground within far_m (the ground range grows with |u - cx|, so checking both
+  // image ends, with a 1e-9 margin for rounding, covers the row), 0 when it depends on u.
+  int row_class(const CameraFrame& cf, double v) const {
+    const CameraSpec& c = sc.camera;
+    const double b = (v - c.cy) / c.focal_px;
+    int cls[2];
+    for (int e = 0; e < 2; ++e) {
+      const double u = e == 0 ? -0.5 : c.width - 0.5;
+      const double a = (u - c.cx) / c.focal_px;
+      const Vec3 dir = a * cf.xc + b * cf.yc + cf.zc;
+      if (!(dir.z < -kEps)) {
+        cls[e] = -2;
+        continue;
+      }
+      const double t = -cf.origin.z / dir.z;
+      const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
+      cls[e] = range <= far_m * (1.0 - 1e-9) ? -1 : 0;
+    }
+    return cls[0] == cls[1] ? cls[0] : 0;
+  }
+
+  void surface(int cam, Vec3 dir, Hit& h) const {
+    if (h.what < 0) return;
+    const Placed& o = placed[static_cast<std::size_t>(h.what)];
+    if (o.cyl) surface_cylinder(o, lo[h.what][cam], dir, h);
+    else surface_box(o, lo[h.what][cam], dir, h);
   }
 };
 
@@ -230,16 +476,29 @@ double normal_quantile(double p) {
 // Zero-mean unit Gaussian for (seed, camera, pixel, channel): a hash of those picks one of 2^16
 // equally likely standard-normal quantiles Phi^-1((i + 0.5) / 2^16), tabulated once (one hash
 // per sample instead of a log and a cos per Box-Muller pair).
-double gauss(std::uint64_t seed, int cam, int x, int y, int ch) {
+const float* gauss_table() {
   static const std::vector<float> table = [] {
     std::vector<float> t(1u << 16);
     for (std::size_t i = 0; i < t.size(); ++i)
       t[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / static_cast<double>(t.size())));
     return t;
   }();
+  return table.data();
+}
+
+double gauss(std::uint64_t seed, int cam, int x, int y, int ch) {
   const std::uint64_t k = seed ^ (static_cast<std::uint64_t>(cam * 4 + ch) << 56);
   const double u = detail::hash01(x, y, k);
-  return table[static_cast<std::size_t>(u * 65536.0)];
+  return gauss_table()[static_cast<std::size_t>(u * 65536.0)];
+}
+
+// gauss() with the table passed in and the index taken from the hash bits: hash01 = (m >> 11) *
+// 2^-53 is exact, so floor(hash01 * 2^16) = m >> 48 exactly (same sample, tested).
+inline double gauss_fast(const float* table, std::uint64_t seed, int cam, int x, int y, int ch) {
+  const std::uint64_t k = seed ^ (static_cast<std::uint64_t>(cam * 4 + ch) << 56) ^
+                          (static_cast<std::uint64_t>(static_cast<std::int64_t>(x)) * 0x9E3779B97F4A7C15ULL) ^
+                          (static_cast<std::uint64_t>(static_cast<std::int64_t>(y)) * 0xC2B2AE3D27D4EB4FULL);
+  return table[detail::mix64(k) >> 48];
 }
 
 std::uint8_t to_u8(double c, const CameraRadiometry& r, double noise) {
@@ -247,6 +506,18 @@ std::uint8_t to_u8(double c, const CameraRadiometry& r, double noise) {
   if (r.gamma != 1.0) c = std::pow(c, r.gamma);
   const double v = r.gain * c * 255.0 + r.bias + noise;
   return static_cast<std::uint8_t>(std::clamp(std::floor(v + 0.5), 0.0, 255.0));
+}
+
+// to_u8() without floor: w < 0 rounds to <= -1 and clamps to 0, w >= 255 clamps to 255, and in
+// between truncation is floor (same value, tested).
+inline std::uint8_t to_u8_fast(double c, const CameraRadiometry& r, double noise) {
+  c = detail::clamp01(c);
+  if (r.gamma != 1.0) c = std::pow(c, r.gamma);
+  const double v = r.gain * c * 255.0 + r.bias + noise;
+  const double w = v + 0.5;
+  if (w < 0.0) return 0;
+  if (w >= 255.0) return 255;
+  return static_cast<std::uint8_t>(static_cast<int>(w));
 }
 
 }  // namespace
@@ -302,15 +573,27 @@ double World::clearance(const Pose2& pose, double t) const {
   return best;
 }
 
-RenderResult World::render(const Pose2& pose, double time_s, int threads) const {
-  const Scene& sc = scene_;
+namespace {
+
+// Everything a frame needs before the pixel loop: camera frames, obstacles placed at time t with
+// their screen bounds, light.
+struct FrameSetup {
+  CameraFrame frames[2];
+  std::vector<Placed> placed;
+  Vec3 sun;
+  Color sun_c, amb_c, horizon;
+};
+
+// `clip`: replace the whole-image bounds of an obstacle straddling a camera plane by
+// clipped_bounds() (fast path only; the reference keeps the whole image).
+FrameSetup setup_frame(const Scene& sc, const Pose2& pose, double time_s, bool clip) {
   const CameraSpec& cam = sc.camera;
-  const int W = cam.width, H = cam.height;
-  const CameraFrame frames[2] = {camera_frame(cam, pose, 0), camera_frame(cam, pose, 1)};
+  FrameSetup f{{camera_frame(cam, pose, 0), camera_frame(cam, pose, 1)}, {}, {}, {}, {}, {}};
+  const CameraFrame* frames = f.frames;
+  std::vector<Placed>& placed = f.placed;
 
   // Obstacles at time t with conservative screen bounds (8 corners of the bounding box projected;
   // the whole image when a corner is behind the camera).
-  std::vector<Placed> placed;
   for (std::size_t i = 0; i < sc.obstacles.size(); ++i) {
     const ObstacleSpec& o = sc.obstacles[i];
     Placed p;
@@ -340,46 +623,156 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
         u0 = std::min(u0, u); u1 = std::max(u1, u); v0 = std::min(v0, v); v1 = std::max(v1, v);
       }
       if (!any_front) { u0 = v0 = kInf; u1 = v1 = -kInf; }
+      else if (behind && clip) clipped_bounds(p, cf, cam, u0, u1, v0, v1);
       else if (behind) { u0 = v0 = -kInf; u1 = v1 = kInf; }
       else { u0 -= 2; v0 -= 2; u1 += 2; v1 += 2; }
+      if (clip && p.cyl) {
+        // A cylinder also lies in its bounding square turned by 45 deg: keep only what both
+        // screen boxes cover (still every sample that can hit it).
+        Placed q = p;
+        q.c = (p.c - p.s) * std::sqrt(0.5);
+        q.s = (p.s + p.c) * std::sqrt(0.5);
+        double a0, a1, b0, b1;
+        clipped_bounds(q, cf, cam, a0, a1, b0, b1);
+        u0 = std::max(u0, a0); u1 = std::min(u1, a1); v0 = std::max(v0, b0); v1 = std::min(v1, b1);
+        if (u0 > u1 || v0 > v1) { u0 = v0 = kInf; u1 = v1 = -kInf; }
+      }
       p.u0[k] = u0; p.u1[k] = u1; p.v0[k] = v0; p.v1[k] = v1;
     }
     placed.push_back(p);
   }
 
-  const Tracer tr{sc, placed, sc.render.far_m};
   const double sun_az = sc.light.sun_azimuth_deg * kDeg, sun_el = sc.light.sun_elevation_deg * kDeg;
-  const Vec3 sun{std::cos(sun_el) * std::cos(sun_az), std::cos(sun_el) * std::sin(sun_az), std::sin(sun_el)};
-  const Color sun_c = detail::sun_light(sc.sky.kind), amb_c = detail::ambient_light(sc.sky.kind);
+  f.sun = {std::cos(sun_el) * std::cos(sun_az), std::cos(sun_el) * std::sin(sun_az), std::sin(sun_el)};
+  f.sun_c = detail::sun_light(sc.sky.kind);
+  f.amb_c = detail::ambient_light(sc.sky.kind);
   // Horizon colour seen along the robot heading (haze target; direction-independent enough).
-  const Color horizon = detail::sky_color(sc.sky.kind, Vec3{std::cos(pose.yaw_rad), std::sin(pose.yaw_rad), 0.0},
-                                          Vec3{0, 0, 1}, sc.seed);
+  f.horizon = detail::sky_color(sc.sky.kind, Vec3{std::cos(pose.yaw_rad), std::sin(pose.yaw_rad), 0.0}, Vec3{0, 0, 1},
+                                sc.seed);
+  return f;
+}
 
+// Output images and the per-pixel scratch the obstacle truth is computed from.
+struct Canvas {
   RenderResult res;
-  res.left = ImageRgb8(W, H);
-  res.right = ImageRgb8(W, H);
-  res.disparity = Image<float>(W, H, 0.0f);
-  res.road_mask = ImageU8(W, H, 0);
-  res.sky_mask = ImageU8(W, H, 0);
-  res.obstacle_ids = ImageI32(W, H, -1);
-  res.calib = calib();
-  Image<float> depth(W, H, 0.0f);
-  ImageI32 index(W, H, -1);
+  Image<float> depth;
+  ImageI32 index;
+  Canvas(int W, int H, const StereoCalib& calib) : depth(W, H, 0.0f), index(W, H, -1) {
+    res.left = ImageRgb8(W, H);
+    res.right = ImageRgb8(W, H);
+    res.disparity = Image<float>(W, H, 0.0f);
+    res.road_mask = ImageU8(W, H, 0);
+    res.sky_mask = ImageU8(W, H, 0);
+    res.obstacle_ids = ImageI32(W, H, -1);
+    res.calib = calib;
+  }
 
+  // Writes pixel (x, y) of camera k: colour `acc` with sensor noise and, for the left camera, the
+  // ground truth of the pixel-centre hit.
+  // `fast`: gauss_fast/to_u8_fast instead of the reference gauss/to_u8.
+  void store(const Scene& sc, const std::vector<Placed>& placed, int k, int x, int y, Color acc, const Hit& centre,
+             bool fast) {
+    const CameraRadiometry& rad = k == 0 ? sc.radiometric.left : sc.radiometric.right;
+    Rgb8& out = (k == 0 ? res.left : res.right).at(x, y);
+    const double sig = rad.noise_sigma;
+    if (fast) {
+      const float* table = gauss_table();
+      out.r = to_u8_fast(acc.r, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 0) : 0.0);
+      out.g = to_u8_fast(acc.g, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 1) : 0.0);
+      out.b = to_u8_fast(acc.b, rad, sig > 0 ? sig * gauss_fast(table, sc.seed, k, x, y, 2) : 0.0);
+    } else {
+      out.r = to_u8(acc.r, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 0) : 0.0);
+      out.g = to_u8(acc.g, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 1) : 0.0);
+      out.b = to_u8(acc.b, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 2) : 0.0);
+    }
+    if (k != 0) return;
+    // Ground truth: the left ray through the pixel centre.
+    const Hit& g = centre;
+    if (g.what == -2) {
+      res.sky_mask.at(x, y) = 255;
+      return;
+    }
+    res.disparity.at(x, y) = static_cast<float>(sc.camera.focal_px * sc.camera.baseline_m / g.t);
+    depth.at(x, y) = static_cast<float>(g.t);
+    if (g.what == -1) {
+      res.road_mask.at(x, y) = 255;
+    } else {
+      index.at(x, y) = g.what;
+      res.obstacle_ids.at(x, y) = placed[static_cast<std::size_t>(g.what)].spec->id;
+    }
+  }
+
+  // Obstacle list: boxes, counts and median depth over the visible pixels.
+  RenderResult finish(const FrameSetup& f) {
+    const int W = res.left.width, H = res.left.height;
+    const std::vector<Placed>& placed = f.placed;
+    std::vector<std::vector<float>> depths(placed.size());
+    for (auto& p : placed) {
+      ObstacleTruth t;
+      t.id = p.spec->id;
+      t.shape = p.spec->shape;
+      t.x0 = W; t.y0 = H; t.x1 = -1; t.y1 = -1;
+      const Vec3 centre = p.base + Vec3{0, 0, p.h * 0.5};
+      t.world[0] = centre.x; t.world[1] = centre.y; t.world[2] = centre.z;
+      const Vec3 rel = centre - f.frames[0].origin;
+      t.cam[0] = detail::dot(rel, f.frames[0].xc);
+      t.cam[1] = detail::dot(rel, f.frames[0].yc);
+      t.cam[2] = detail::dot(rel, f.frames[0].zc);
+      t.velocity[0] = p.spec->vx_mps;
+      t.velocity[1] = p.spec->vy_mps;
+      res.obstacles.push_back(t);
+    }
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const int i = index.at(x, y);
+        if (i < 0) continue;
+        ObstacleTruth& t = res.obstacles[static_cast<std::size_t>(i)];
+        t.x0 = std::min(t.x0, x); t.x1 = std::max(t.x1, x);
+        t.y0 = std::min(t.y0, y); t.y1 = std::max(t.y1, y);
+        ++t.visible_pixels;
+        depths[static_cast<std::size_t>(i)].push_back(depth.at(x, y));
+      }
+    for (std::size_t i = 0; i < placed.size(); ++i) {
+      ObstacleTruth& t = res.obstacles[i];
+      auto& d = depths[i];
+      if (d.empty()) {
+        t.x0 = t.y0 = 0; t.x1 = t.y1 = -1;
+        continue;
+      }
+      const std::size_t mid = d.size() / 2;
+      std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid), d.end());
+      double med = d[mid];
+      if (d.size() % 2 == 0) med = 0.5 * (med + *std::max_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid)));
+      t.distance_m = med;
+      t.truncated = t.x0 == 0 || t.y0 == 0 || t.x1 == W - 1 || t.y1 == H - 1;
+    }
+    return std::move(res);
+  }
+};
+
+#if defined(FS_HAVE_OPENMP)
+int omp_threads(int threads) { return threads > 0 ? threads : omp_get_max_threads(); }
+#endif
+
+}  // namespace
+
+RenderResult World::render_reference(const Pose2& pose, double time_s, int threads) const {
+  const Scene& sc = scene_;
+  const int W = sc.camera.width, H = sc.camera.height;
+  const FrameSetup f = setup_frame(sc, pose, time_s, false);
+  const Tracer tr{sc, f.placed, sc.render.far_m};
+  Canvas cv(W, H, calib());
   const int n = sc.render.supersample;
-  const double fB = cam.focal_px * cam.baseline_m;
   const int rows = 2 * H;
 #if defined(FS_HAVE_OPENMP)
-  const int nt = threads > 0 ? threads : 0;
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nt > 0 ? nt : omp_get_max_threads()) if (rows > 1)
+  const int nt = omp_threads(threads);
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt) if (rows > 1)
 #else
   (void)threads;
 #endif
   for (int row = 0; row < rows; ++row) {
     const int k = row / H, y = row % H;  // camera, image row
-    const CameraFrame& cf = frames[k];
-    const CameraRadiometry& rad = k == 0 ? sc.radiometric.left : sc.radiometric.right;
-    Rgb8* out = (k == 0 ? res.left : res.right).row(y);
+    const CameraFrame& cf = f.frames[k];
     for (int x = 0; x < W; ++x) {
       // Geometry of the n x n sub-pixel rays and of the pixel centre. Where all of them see the same
       // surface (face), the pixel is shaded once at the centre: the textures are pre-filtered by
@@ -394,78 +787,127 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
         }
       Color acc;
       if (same) {
-        acc = tr.shade(cf, x, y, centre, sun, sun_c, amb_c, horizon);
+        acc = tr.shade(cf, x, y, centre, f.sun, f.sun_c, f.amb_c, f.horizon);
       } else {
         for (int sy = 0, i = 0; sy < n; ++sy)
           for (int sx = 0; sx < n; ++sx, ++i)
-            acc = acc + tr.shade(cf, x + (sx + 0.5) / n - 0.5, y + (sy + 0.5) / n - 0.5, sub[i], sun, sun_c, amb_c,
-                                 horizon);
+            acc = acc + tr.shade(cf, x + (sx + 0.5) / n - 0.5, y + (sy + 0.5) / n - 0.5, sub[i], f.sun, f.sun_c,
+                                 f.amb_c, f.horizon);
         acc = (1.0 / (n * n)) * acc;
       }
-      const double sig = rad.noise_sigma;
-      out[x].r = to_u8(acc.r, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 0) : 0.0);
-      out[x].g = to_u8(acc.g, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 1) : 0.0);
-      out[x].b = to_u8(acc.b, rad, sig > 0 ? sig * gauss(sc.seed, k, x, y, 2) : 0.0);
-      if (k != 0) continue;
-      // Ground truth: the left ray through the pixel centre.
-      const Hit& g = centre;
-      if (g.what == -2) {
-        res.sky_mask.at(x, y) = 255;
-        continue;
-      }
-      res.disparity.at(x, y) = static_cast<float>(fB / g.t);
-      depth.at(x, y) = static_cast<float>(g.t);
-      if (g.what == -1) {
-        res.road_mask.at(x, y) = 255;
-      } else {
-        index.at(x, y) = g.what;
-        res.obstacle_ids.at(x, y) = placed[static_cast<std::size_t>(g.what)].spec->id;
-      }
+      cv.store(sc, f.placed, k, x, y, acc, centre, false);
     }
   }
+  return cv.finish(f);
+}
 
-  // Obstacle list: boxes, counts and median depth over the visible pixels.
-  std::vector<std::vector<float>> depths(placed.size());
-  for (auto& p : placed) {
-    ObstacleTruth t;
-    t.id = p.spec->id;
-    t.shape = p.spec->shape;
-    t.x0 = W; t.y0 = H; t.x1 = -1; t.y1 = -1;
-    const Vec3 centre = p.base + Vec3{0, 0, p.h * 0.5};
-    t.world[0] = centre.x; t.world[1] = centre.y; t.world[2] = centre.z;
-    const Vec3 rel = centre - frames[0].origin;
-    t.cam[0] = detail::dot(rel, frames[0].xc);
-    t.cam[1] = detail::dot(rel, frames[0].yc);
-    t.cam[2] = detail::dot(rel, frames[0].zc);
-    t.velocity[0] = p.spec->vx_mps;
-    t.velocity[1] = p.spec->vy_mps;
-    res.obstacles.push_back(t);
+RenderResult World::render(const Pose2& pose, double time_s, int threads) const {
+  const Scene& sc = scene_;
+  const int W = sc.camera.width, H = sc.camera.height;
+  const FrameSetup f = setup_frame(sc, pose, time_s, true);
+  const std::size_t no = f.placed.size();
+  // Camera origins in the obstacle frames, with the expressions of intersect_box/_cylinder.
+  std::vector<std::array<Vec3, 2>> lo(no);
+  std::vector<std::array<double, 2>> cc(no), zskip(no);
+  for (std::size_t i = 0; i < no; ++i) {
+    const Placed& o = f.placed[i];
+    for (int k = 0; k < 2; ++k) {
+      const CameraFrame& cf = f.frames[k];
+      const Vec3 l = to_local(o, cf.origin - o.base);
+      lo[i][k] = o.cyl ? l : l - Vec3{0, 0, o.h * 0.5};
+      cc[i][k] = l.x * l.x + l.y * l.y - o.r * o.r;
+      double zmin = kInf;
+      for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 c{(corner & 1) ? o.hx : -o.hx, (corner & 2) ? o.hy : -o.hy, (corner & 4) ? o.h : 0.0};
+        zmin = std::min(zmin, detail::dot(o.base + to_world(o, c) - cf.origin, cf.zc));
+      }
+      zskip[i][k] = zmin - 1e-6 - 1e-9 * std::fabs(zmin);
+    }
   }
-  for (int y = 0; y < H; ++y)
+  const TileLists tiles[2] = {build_tiles(f.placed, 0, W, H), build_tiles(f.placed, 1, W, H)};
+  const FastTracer ft{sc, f.placed, sc.render.far_m, lo.data(), cc.data(), zskip.data()};
+  const Tracer tr{sc, f.placed, sc.render.far_m};  // shading
+  Canvas cv(W, H, calib());
+  const int n = sc.render.supersample;
+  double off[kMaxSub];  // sub-sample offsets, as the reference computes them
+  for (int s = 0; s < n; ++s) off[s] = (s + 0.5) / n;
+  // Per camera and pixel row: the row_class() of each sub-sample row, and the class shared by the
+  // centre and all sub-sample rows (or 0).
+  std::vector<int> pixel_row_class(static_cast<std::size_t>(2 * H));
+  std::vector<int> sub_row_class(static_cast<std::size_t>(2 * H * n));
+  for (int k = 0; k < 2; ++k)
+    for (int y = 0; y < H; ++y) {
+      int cls = ft.row_class(f.frames[k], y);
+      for (int sy = 0; sy < n; ++sy) {
+        const int c = ft.row_class(f.frames[k], y + off[sy] - 0.5);
+        sub_row_class[static_cast<std::size_t>((k * H + y) * n + sy)] = c;
+        if (c != cls) cls = 0;
+      }
+      pixel_row_class[static_cast<std::size_t>(k * H + y)] = cls;
+    }
+  const int rows = 2 * H;
+#if defined(FS_HAVE_OPENMP)
+  const int nt = omp_threads(threads);
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt) if (rows > 1)
+#else
+  (void)threads;
+#endif
+  for (int row = 0; row < rows; ++row) {
+    const int k = row / H, y = row % H;  // camera, image row
+    const CameraFrame& cf = f.frames[k];
+    const TileLists& tl = tiles[k];
+    const int row_cls = pixel_row_class[static_cast<std::size_t>(row)];
+    const int* sub_cls = sub_row_class.data() + static_cast<std::size_t>(row) * n;
+    bool lazy[kMaxSub * kMaxSub];  // sub-sample known to see sub_cls (ground/sky), not traced yet
+    const int* trow = tl.start.data() + (y / kTile) * tl.tw;
+    Hit sub[kMaxSub * kMaxSub];  // [0, n * n) written for every pixel before use
+    Vec3 sdir[kMaxSub * kMaxSub];
     for (int x = 0; x < W; ++x) {
-      const int i = index.at(x, y);
-      if (i < 0) continue;
-      ObstacleTruth& t = res.obstacles[static_cast<std::size_t>(i)];
-      t.x0 = std::min(t.x0, x); t.x1 = std::max(t.x1, x);
-      t.y0 = std::min(t.y0, y); t.y1 = std::max(t.y1, y);
-      ++t.visible_pixels;
-      depths[static_cast<std::size_t>(i)].push_back(depth.at(x, y));
+      const int* cand = tl.items.data() + trow[x / kTile];
+      const int ncand = trow[x / kTile + 1] - trow[x / kTile];
+      Vec3 cdir;
+      bool same = true;
+      Hit centre = ft.trace(cf, k, x, y, cand, ncand, cdir);
+      // Every sample of the pixel sees the same ground or sky when its rows agree (row_cls) and no
+      // obstacle's screen box reaches into the pixel: then the sub-sample rays are not traced.
+      bool clean = row_cls != 0;
+      for (int j = 0; j < ncand && clean; ++j) {
+        const Placed& o = f.placed[static_cast<std::size_t>(cand[j])];
+        clean = o.u0[k] > x + 0.5 || o.u1[k] < x - 0.5 || o.v0[k] > y + 0.5 || o.v1[k] < y - 0.5;
+      }
+      for (int sy = 0, i = 0; sy < n && !clean; ++sy)
+        for (int sx = 0; sx < n; ++sx, ++i) {
+          const double u = x + off[sx] - 0.5, v = y + off[sy] - 0.5;
+          // A sample on a ground/sky row that no obstacle's screen box holds sees that class.
+          lazy[i] = sub_cls[sy] != 0;
+          for (int j = 0; j < ncand && lazy[i]; ++j) {
+            const Placed& o = f.placed[static_cast<std::size_t>(cand[j])];
+            lazy[i] = u < o.u0[k] || u > o.u1[k] || v < o.v0[k] || v > o.v1[k];
+          }
+          if (lazy[i]) {
+            sub[i].what = sub_cls[sy];
+            sub[i].face = 0;
+          } else {
+            sub[i] = ft.trace(cf, k, u, v, cand, ncand, sdir[i]);
+          }
+          same = same && sub[i].what == centre.what && sub[i].face == centre.face;
+        }
+      Color acc;
+      if (same) {
+        ft.surface(k, cdir, centre);
+        acc = tr.shade_dir(cf, cdir, centre, f.sun, f.sun_c, f.amb_c, f.horizon);
+      } else {
+        for (int i = 0; i < n * n; ++i) {
+          if (lazy[i]) sub[i] = ft.trace(cf, k, x + off[i % n] - 0.5, y + off[i / n] - 0.5, cand, ncand, sdir[i]);
+          ft.surface(k, sdir[i], sub[i]);
+          acc = acc + tr.shade_dir(cf, sdir[i], sub[i], f.sun, f.sun_c, f.amb_c, f.horizon);
+        }
+        acc = (1.0 / (n * n)) * acc;
+      }
+      cv.store(sc, f.placed, k, x, y, acc, centre, true);
     }
-  for (std::size_t i = 0; i < placed.size(); ++i) {
-    ObstacleTruth& t = res.obstacles[i];
-    auto& d = depths[i];
-    if (d.empty()) {
-      t.x0 = t.y0 = 0; t.x1 = t.y1 = -1;
-      continue;
-    }
-    const std::size_t mid = d.size() / 2;
-    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid), d.end());
-    double med = d[mid];
-    if (d.size() % 2 == 0) med = 0.5 * (med + *std::max_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid)));
-    t.distance_m = med;
-    t.truncated = t.x0 == 0 || t.y0 == 0 || t.x1 == W - 1 || t.y1 == H - 1;
   }
-  return res;
+  return cv.finish(f);
 }
 
 }  // namespace fs::sim

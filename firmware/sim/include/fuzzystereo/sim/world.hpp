@@ -71,6 +71,10 @@ class World {
   // Renders the stereo pair seen from `pose` at time `t` [s]. threads <= 0: OpenMP default.
   RenderResult render(const Pose2& pose, double t, int threads = 0) const;
   RenderResult render(int threads = 0) const { return render(scene_pose(), 0.0, threads); }
+  // Plain reference of render(): every sample ray against every obstacle whose screen box holds
+  // it, full hit records. render() must give bit-identical results (tests/cpp/sim); several times
+  // slower, kept only as that test's oracle.
+  RenderResult render_reference(const Pose2& pose, double t, int threads = 0) const;
 
   std::vector<Footprint> obstacles_at(double t) const;
   // Signed distance [m] from (pose.x, pose.y) to the nearest footprint edge at time t (negative
