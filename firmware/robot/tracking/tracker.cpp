@@ -117,6 +117,8 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.confirmed = p_.confirm_hits <= 1;
     tr.last_meas_ns = t_ns;
     tr.last_meas_p = m.p;
+    tr.first_meas_ns = t_ns;
+    tr.first_meas_p = m.p;
     tr.last_meas_var = sigma * sigma;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);

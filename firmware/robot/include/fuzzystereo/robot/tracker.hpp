@@ -32,6 +32,8 @@ struct Track {
   bool confirmed = false;
   std::int64_t last_meas_ns = 0;
   Vec2 last_meas_p;             // for the finite-difference velocity measurement
+  std::int64_t first_meas_ns = 0;  // the measurement that started the track
+  Vec2 first_meas_p;
   double last_meas_var = 0;     // its position variance [m^2]
   bool updated_this_frame = false;
 
