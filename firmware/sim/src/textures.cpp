@@ -3,11 +3,28 @@
 // frame for obstacles — so both cameras see the same surface pattern (stereo-consistent) and a
 // moving obstacle carries its texture. Patterns finer than the pixel footprint fade to their
 // mean (lod()), which with the 2x2 supersampling keeps far surfaces free of aliasing.
+#include <limits>
+
 #include "sim_internal.hpp"
 
 namespace fs::sim::detail {
 
 double fbm(double x, double y, std::uint64_t seed, double wl, int octaves, double fp) {
+  // Octave k has wavelength wl * 2^-k (exact), so x / wl_k = (x / wl) * 2^k and wl_k / fp =
+  // (wl / fp) * 2^-k exactly: binary rounding commutes with power-of-two scaling while the values
+  // stay normal (or zero / infinite). The divisions of the first octave are scaled instead of
+  // repeated; subnormal quotients (never met in practice) take the divide-per-octave loop.
+  const double qx = x / wl, qy = y / wl, qw = wl / fp;
+  auto normal = [](double q) { return q == 0.0 || std::fabs(q) >= std::numeric_limits<double>::min(); };
+  if (normal(qx) && normal(qy) && normal(qw)) {
+    double sum = 0.0, amp = 0.5, scale = 1.0, inv = 1.0;
+    for (int k = 0; k < octaves; ++k, scale *= 2.0, inv *= 0.5, amp *= 0.6) {
+      const double w = clamp01(qw * inv - 1.0);  // lod(wl_k, fp); qw * 2^-k is exact (or underflows below 1)
+      if (w <= 0.0) break;  // every next octave is finer still
+      sum += amp * w * (value_noise(qx * scale, qy * scale, seed + static_cast<std::uint64_t>(k) * 7919u) - 0.5);
+    }
+    return sum;
+  }
   double sum = 0.0, amp = 0.5;
   for (int k = 0; k < octaves; ++k, wl *= 0.5, amp *= 0.6) {
     const double w = lod(wl, fp);
