@@ -219,8 +219,12 @@ struct Tracer {
 // against the reference) by doing the same floating-point operations in the same order, only fewer
 // of them:
 //  - per camera, the image is cut into kTile x kTile pixel tiles and each tile lists the obstacles
-//    whose screen box overlaps it (in scene order, so ties resolve as in the reference); a sample
-//    still applies the reference's own box test to each listed obstacle;
+//    whose screen box overlaps it, nearest first; a ray stops at the first obstacle that cannot
+//    beat its current hit (zskip) and resolves exact depth ties by scene order (closer()), as the
+//    reference does; a sample still applies the reference's own box test to each listed obstacle;
+//  - per image row: the ray constant (v - cy) / f, and whether every ray of the row hits the ground
+//    within far_m or the sky (row_info); per column (u - cx) / f. Pixels whose rows agree and that
+//    no obstacle box reaches are not supersampled (all their rays see the same surface);
 //  - obstacles straddling the camera plane (the reference draws them over the whole image) get the
 //    screen box of the part of their bounding box in front of the camera (clipped_bounds), which
 //    still contains every sample that can hit them;
