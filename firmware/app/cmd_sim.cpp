@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
@@ -153,6 +154,8 @@ struct RenderOptions {
   std::string out;
   double time_s = 0.0;
   int threads = 0;
+  int repeat = 1;
+  bool reference = false;
 };
 
 void run_render(const RenderOptions& o) {
@@ -161,14 +164,24 @@ void run_render(const RenderOptions& o) {
   if (!(o.time_s >= 0.0)) throw UserError("--time must be >= 0 s");
   const stdfs::path out(o.out);
   make_dir(out);
+  if (o.repeat < 1) throw UserError("--repeat must be >= 1");
   const sim::World world(scene);
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::clock_t c0 = std::clock();
-  const sim::RenderResult r = world.render(world.scene_pose(), o.time_s, o.threads);
-  const double ms = ms_since(t0);
-  // Process CPU time (all threads): the wall time's lower bound on an idle machine is about this
-  // divided by the thread count.
-  const double cpu_ms = 1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
+  // --repeat N: N identical renders, median times reported (timing); the files are the last one.
+  std::vector<double> wall, cpu;
+  sim::RenderResult r;
+  for (int i = 0; i < o.repeat; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::clock_t c0 = std::clock();
+    r = o.reference ? world.render_reference(world.scene_pose(), o.time_s, o.threads)
+                    : world.render(world.scene_pose(), o.time_s, o.threads);
+    wall.push_back(ms_since(t0));
+    // Process CPU time (all threads): the wall time's lower bound on an idle machine is about this
+    // divided by the thread count.
+    cpu.push_back(1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+  }
+  std::sort(wall.begin(), wall.end());
+  std::sort(cpu.begin(), cpu.end());
+  const double ms = wall[wall.size() / 2], cpu_ms = cpu[cpu.size() / 2];
   write_image((out / "left.png").string(), to_bgr(r.left));
   write_image((out / "right.png").string(), to_bgr(r.right));
   const cv::Mat disp = to_float(r.disparity);
@@ -186,9 +199,11 @@ void run_render(const RenderOptions& o) {
   j["render_cpu_ms"] = cpu_ms;
   write_text(out / "obstacles.json", j.dump(2) + "\n");
   write_text(out / "calib_cam_to_cam.txt", kitti_calib(r.calib, r.left.width, r.left.height));
-  std::printf("rendered %s: %dx%d, supersample %dx%d, %zu obstacles, max GT disparity %.2f px, %.1f ms (CPU %.1f ms) -> %s\n",
+  std::printf("rendered %s: %dx%d, supersample %dx%d, %zu obstacles, max GT disparity %.2f px, %.1f ms (CPU %.1f ms)%s%s -> %s\n",
               o.scene.c_str(), r.left.width, r.left.height, scene.render.supersample, scene.render.supersample,
-              r.obstacles.size(), static_cast<double>(max_disparity(r.disparity)), ms, cpu_ms, o.out.c_str());
+              r.obstacles.size(), static_cast<double>(max_disparity(r.disparity)), ms, cpu_ms,
+              o.repeat > 1 ? (", median of " + std::to_string(o.repeat)).c_str() : "",
+              o.reference ? ", reference renderer" : "", o.out.c_str());
 }
 
 // ---- sim generate --------------------------------------------------------------------------------
@@ -275,6 +290,8 @@ void add_sim_command(CLI::App& app) {
   render->add_option("--out", ro->out, "Output directory")->required();
   render->add_option("--time", ro->time_s, "Scene time [s] (moving obstacles)")->capture_default_str();
   render->add_option("--threads", ro->threads, "Render threads (0 = all cores)")->capture_default_str();
+  render->add_option("--repeat", ro->repeat, "Render N times, report the median time (timing)")->capture_default_str();
+  render->add_flag("--reference", ro->reference, "Use the plain reference renderer (same output, slower; for checks)");
   render->callback([ro] { run_render(*ro); });
 
   auto go = std::make_shared<GenerateOptions>();

@@ -68,6 +68,8 @@ inline double lod(double wl, double fp) { return clamp01(wl / fp - 1.0); }
 // Fractal sum of `octaves` value-noise octaves, the first of wavelength wl [m], each next half as
 // long and 0.6x as strong; octaves too fine for the footprint fade out. Roughly in [-0.5, 0.5].
 double fbm(double x, double y, std::uint64_t seed, double wl, int octaves, double fp);
+// The plain per-octave loop fbm() must reproduce bit for bit (its test oracle).
+double fbm_reference(double x, double y, std::uint64_t seed, double wl, int octaves, double fp);
 
 // Albedo of the ground at world (x, y) [m]; fp = pixel footprint [m].
 Color ground_albedo(GroundTexture tex, double x, double y, double scale_m, double fp, std::uint64_t seed);

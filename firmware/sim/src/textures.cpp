@@ -3,11 +3,77 @@
 // frame for obstacles — so both cameras see the same surface pattern (stereo-consistent) and a
 // moving obstacle carries its texture. Patterns finer than the pixel footprint fade to their
 // mean (lod()), which with the 2x2 supersampling keeps far surfaces free of aliasing.
+#include <limits>
+
 #include "sim_internal.hpp"
 
 namespace fs::sim::detail {
 
+namespace {
+
+// value_noise() with the lattice values of the last cell seen per seed kept per thread: along an
+// image row the coarse octaves stay in one cell for many pixels and the fine ones step to a
+// neighbouring cell, so most of the four hashes are reused. The cached numbers are the hashes
+// themselves, so the result is the same bits as value_noise() (tested against the reference).
+struct NoiseCell {
+  std::uint64_t seed = 0;
+  std::int64_t ix = 0, iy = 0;
+  double v[4] = {0, 0, 0, 0};  // hash01 at (ix, iy), (ix + 1, iy), (ix, iy + 1), (ix + 1, iy + 1)
+  bool valid = false;
+};
+thread_local NoiseCell noise_cache[64];
+
+inline double value_noise_cached(double x, double y, std::uint64_t seed) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+  double tx = x - fx, ty = y - fy;
+  tx = tx * tx * (3.0 - 2.0 * tx);
+  ty = ty * ty * (3.0 - 2.0 * ty);
+  NoiseCell& e = noise_cache[(seed * 0x9E3779B97F4A7C15ULL) >> 58];
+  if (!e.valid || e.seed != seed || e.ix != ix || e.iy != iy) {
+    double nv[4];
+    const bool same_seed = e.valid && e.seed == seed;
+    for (int c = 0; c < 4; ++c) {
+      const std::int64_t cx = ix + (c & 1), cy = iy + (c >> 1);
+      // offsets into the cached cell, in wrapping unsigned arithmetic (0 or 1 = a cached corner)
+      const std::uint64_t ox = static_cast<std::uint64_t>(cx) - static_cast<std::uint64_t>(e.ix);
+      const std::uint64_t oy = static_cast<std::uint64_t>(cy) - static_cast<std::uint64_t>(e.iy);
+      nv[c] = same_seed && ox <= 1 && oy <= 1 ? e.v[ox + 2 * oy] : hash01(cx, cy, seed);
+    }
+    e.seed = seed;
+    e.ix = ix;
+    e.iy = iy;
+    e.valid = true;
+    for (int c = 0; c < 4; ++c) e.v[c] = nv[c];
+  }
+  const double a = e.v[0], b = e.v[1], c = e.v[2], d = e.v[3];
+  const double top = a + (b - a) * tx, bot = c + (d - c) * tx;
+  return top + (bot - top) * ty;
+}
+
+}  // namespace
+
 double fbm(double x, double y, std::uint64_t seed, double wl, int octaves, double fp) {
+  // Octave k has wavelength wl * 2^-k (exact), so x / wl_k = (x / wl) * 2^k and wl_k / fp =
+  // (wl / fp) * 2^-k exactly: binary rounding commutes with power-of-two scaling while the values
+  // stay normal (or zero / infinite). The divisions of the first octave are scaled instead of
+  // repeated, and the lattice hashes come from value_noise_cached(); subnormal quotients (never met
+  // in practice) take fbm_reference(). Same bits as fbm_reference() (tests/cpp/sim).
+  const double qx = x / wl, qy = y / wl, qw = wl / fp;
+  auto normal = [](double q) { return q == 0.0 || std::fabs(q) >= std::numeric_limits<double>::min(); };
+  if (normal(qx) && normal(qy) && normal(qw)) {
+    double sum = 0.0, amp = 0.5, scale = 1.0, inv = 1.0;
+    for (int k = 0; k < octaves; ++k, scale *= 2.0, inv *= 0.5, amp *= 0.6) {
+      const double w = clamp01(qw * inv - 1.0);  // lod(wl_k, fp); qw * 2^-k is exact (or underflows below 1)
+      if (w <= 0.0) break;  // every next octave is finer still
+      sum += amp * w * (value_noise_cached(qx * scale, qy * scale, seed + static_cast<std::uint64_t>(k) * 7919u) - 0.5);
+    }
+    return sum;
+  }
+  return fbm_reference(x, y, seed, wl, octaves, fp);
+}
+
+double fbm_reference(double x, double y, std::uint64_t seed, double wl, int octaves, double fp) {
   double sum = 0.0, amp = 0.5;
   for (int k = 0; k < octaves; ++k, wl *= 0.5, amp *= 0.6) {
     const double w = lod(wl, fp);

@@ -219,8 +219,12 @@ struct Tracer {
 // against the reference) by doing the same floating-point operations in the same order, only fewer
 // of them:
 //  - per camera, the image is cut into kTile x kTile pixel tiles and each tile lists the obstacles
-//    whose screen box overlaps it (in scene order, so ties resolve as in the reference); a sample
-//    still applies the reference's own box test to each listed obstacle;
+//    whose screen box overlaps it, nearest first; a ray stops at the first obstacle that cannot
+//    beat its current hit (zskip) and resolves exact depth ties by scene order (closer()), as the
+//    reference does; a sample still applies the reference's own box test to each listed obstacle;
+//  - per image row: the ray constant (v - cy) / f, and whether every ray of the row hits the ground
+//    within far_m or the sky (row_info); per column (u - cx) / f. Pixels whose rows agree and that
+//    no obstacle box reaches are not supersampled (all their rays see the same surface);
 //  - obstacles straddling the camera plane (the reference draws them over the whole image) get the
 //    screen box of the part of their bounding box in front of the camera (clipped_bounds), which
 //    still contains every sample that can hit them;
@@ -274,7 +278,10 @@ struct TileLists {
   std::vector<int> items;
 };
 
-TileLists build_tiles(const std::vector<Placed>& placed, int cam, int W, int H) {
+// Items of a tile sorted by `zskip` (the obstacle's hit-depth lower bound), nearest first, so a
+// ray can stop at the first obstacle that cannot beat its current hit.
+TileLists build_tiles(const std::vector<Placed>& placed, const std::vector<std::array<double, 2>>& zskip, int cam, int W,
+                      int H) {
   TileLists tl;
   tl.tw = (W + kTile - 1) / kTile;
   const int th = (H + kTile - 1) / kTile;
@@ -288,10 +295,18 @@ TileLists build_tiles(const std::vector<Placed>& placed, int cam, int W, int H) 
         const Placed& o = placed[i];
         if (o.u0[cam] <= hu && o.u1[cam] >= lu && o.v0[cam] <= hv && o.v1[cam] >= lv) tl.items.push_back(static_cast<int>(i));
       }
+      std::stable_sort(tl.items.begin() + tl.start.back(), tl.items.end(),
+                       [&](int a, int b) { return zskip[static_cast<std::size_t>(a)][cam] < zskip[static_cast<std::size_t>(b)][cam]; });
     }
   tl.start.push_back(static_cast<int>(tl.items.size()));
   return tl;
 }
+
+// True when a hit at depth t on obstacle idx replaces `best`. The fast path visits obstacles nearest
+// first, not in scene order; taking the lower index on an exact tie gives the reference's winner
+// (it visits in scene order and keeps the first of equal depths; the ground, visited first there,
+// has index -1 and is never replaced on a tie).
+inline bool closer(double t, int idx, const Hit& best) { return t < best.t || (t == best.t && idx < best.what); }
 
 // intersect_box() without the normal and surface coordinates; lo = ray origin in the box frame.
 inline void first_hit_box(const Placed& o, int idx, Vec3 lo, Vec3 dir, Hit& best) {
@@ -310,7 +325,7 @@ inline void first_hit_box(const Placed& o, int idx, Vec3 lo, Vec3 dir, Hit& best
     if (t1 > tnear) { tnear = t1; axis = i; }
     tfar = std::min(tfar, t2);
   }
-  if (tnear > tfar || tnear <= 1e-6 || tnear >= best.t) return;
+  if (tnear > tfar || tnear <= 1e-6 || !closer(tnear, idx, best)) return;
   best.t = tnear;
   best.what = idx;
   best.face = axis * 2 + (pd[axis] > 0 ? 0 : 1);
@@ -340,7 +355,7 @@ inline void first_hit_cylinder(const Placed& o, int idx, Vec3 lo, double cc, Vec
     const double disc = b * b - 4.0 * a * cc;
     if (disc >= 0.0) {
       const double t0 = (-b - std::sqrt(disc)) / (2.0 * a);
-      if (t0 > 1e-6 && t0 < best.t) {
+      if (t0 > 1e-6 && closer(t0, idx, best)) {
         const double pz = lo.z + t0 * ld.z;
         if (pz >= 0.0 && pz <= o.h) {
           best.t = t0;
@@ -356,7 +371,7 @@ inline void first_hit_cylinder(const Placed& o, int idx, Vec3 lo, double cc, Vec
       // t <= 0 unless the ray heads towards the cap plane: skip the division then
       if (!((zc - lo.z > 0.0 && ld.z > 0.0) || (zc - lo.z < 0.0 && ld.z < 0.0))) continue;
       const double t = (zc - lo.z) / ld.z;
-      if (t <= 1e-6 || t >= best.t) continue;
+      if (t <= 1e-6 || !closer(t, idx, best)) continue;
       const double px = lo.x + t * ld.x, py = lo.y + t * ld.y;
       if (px * px + py * py > o.r * o.r) continue;
       best.t = t;
@@ -381,6 +396,12 @@ inline void surface_cylinder(const Placed& o, Vec3 lo, Vec3 dir, Hit& h) {
   }
 }
 
+struct RowInfo {
+  double v = 0, b = 0;  // sample row and (v - cy) / f
+  int cls = 0;          // FastTracer::row_info()
+  double tg = kInf;     // ground depth when cls == -1
+};
+
 struct FastTracer {
   const Scene& sc;
   const std::vector<Placed>& placed;
@@ -392,14 +413,18 @@ struct FastTracer {
   // hit nearer than this cannot get a new nearest hit from it.
   const std::array<double, 2>* zskip;
 
-  // Tracer::trace() over the candidate obstacles `cand` (ascending), without normal and surface
-  // coordinates (surface() adds them); `dir` receives the ray direction.
-  Hit trace(const CameraFrame& cf, int cam, double u, double v, const int* cand, int ncand, Vec3& dir) const {
-    const CameraSpec& c = sc.camera;
-    const double a = (u - c.cx) / c.focal_px, b = (v - c.cy) / c.focal_px;
-    dir = a * cf.xc + b * cf.yc + cf.zc;
+  // Tracer::trace() of the ray through (u, r.v) over the candidate obstacles `cand` (build_tiles
+  // order), without normal and surface coordinates (surface() adds them). a = (u - cx) / f and the
+  // row's b, class and ground depth come precomputed (same expressions); `dir` receives the ray.
+  Hit trace(const CameraFrame& cf, int cam, double u, double a, const RowInfo& r, const int* cand, int ncand,
+            Vec3& dir) const {
+    dir = a * cf.xc + r.b * cf.yc + cf.zc;
     Hit h;
-    if (dir.z < -kEps) {
+    if (r.cls == -1) {  // ground within far_m along the whole row
+      h.t = r.tg;
+      h.what = -1;
+      h.n = {0, 0, 1};
+    } else if (r.cls == 0 && dir.z < -kEps) {
       const double t = -cf.origin.z / dir.z;
       const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
       if (range <= far_m) {
@@ -408,38 +433,44 @@ struct FastTracer {
         h.n = {0, 0, 1};
       }
     }
+    const double v = r.v;
     for (int j = 0; j < ncand; ++j) {
       const int i = cand[j];
       const Placed& o = placed[static_cast<std::size_t>(i)];
+      if (h.t < zskip[i][cam]) break;  // and every later candidate (sorted by zskip)
       if (u < o.u0[cam] || u > o.u1[cam] || v < o.v0[cam] || v > o.v1[cam]) continue;
-      if (h.t < zskip[i][cam]) continue;
       if (o.cyl) first_hit_cylinder(o, i, lo[i][cam], cc[i][cam], dir, h);
       else first_hit_box(o, i, lo[i][cam], dir, h);
     }
     return h;
   }
 
-  // What every ray of image row v (sample space) hits when no obstacle is in the way: -2 when all
-  // see the sky (dir.z >= -kEps: dir.z does not depend on u, the camera X axis being horizontal),
-  // -1 when all hit the ground within far_m (the ground range grows with |u - cx|, so checking both
-  // image ends, with a 1e-9 margin for rounding, covers the row), 0 when it depends on u.
-  int row_class(const CameraFrame& cf, double v) const {
+  // Row constants of sample row v. cls: what every ray of the row hits when no obstacle is in the
+  // way: -2 when all see the sky (dir.z >= -kEps; dir.z does not depend on u, the camera X axis
+  // being horizontal), -1 when all hit the ground within far_m (the ground range grows with
+  // |u - cx|, so checking both image ends, with a 1e-9 margin for rounding, covers the row), 0 when
+  // it depends on u. tg: the ground depth -origin.z / dir.z of the row (when cls == -1).
+  RowInfo row_info(const CameraFrame& cf, double v) const {
     const CameraSpec& c = sc.camera;
-    const double b = (v - c.cy) / c.focal_px;
+    RowInfo r;
+    r.v = v;
+    r.b = (v - c.cy) / c.focal_px;
     int cls[2];
     for (int e = 0; e < 2; ++e) {
       const double u = e == 0 ? -0.5 : c.width - 0.5;
       const double a = (u - c.cx) / c.focal_px;
-      const Vec3 dir = a * cf.xc + b * cf.yc + cf.zc;
+      const Vec3 dir = a * cf.xc + r.b * cf.yc + cf.zc;
       if (!(dir.z < -kEps)) {
         cls[e] = -2;
         continue;
       }
       const double t = -cf.origin.z / dir.z;
+      r.tg = t;
       const double range = t * std::sqrt(dir.x * dir.x + dir.y * dir.y);
       cls[e] = range <= far_m * (1.0 - 1e-9) ? -1 : 0;
     }
-    return cls[0] == cls[1] ? cls[0] : 0;
+    r.cls = cls[0] == cls[1] ? cls[0] : 0;
+    return r;
   }
 
   void surface(int cam, Vec3 dir, Hit& h) const {
@@ -824,26 +855,38 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
       zskip[i][k] = zmin - 1e-6 - 1e-9 * std::fabs(zmin);
     }
   }
-  const TileLists tiles[2] = {build_tiles(f.placed, 0, W, H), build_tiles(f.placed, 1, W, H)};
+  const TileLists tiles[2] = {build_tiles(f.placed, zskip, 0, W, H), build_tiles(f.placed, zskip, 1, W, H)};
   const FastTracer ft{sc, f.placed, sc.render.far_m, lo.data(), cc.data(), zskip.data()};
   const Tracer tr{sc, f.placed, sc.render.far_m};  // shading
   Canvas cv(W, H, calib());
   const int n = sc.render.supersample;
   double off[kMaxSub];  // sub-sample offsets, as the reference computes them
   for (int s = 0; s < n; ++s) off[s] = (s + 0.5) / n;
-  // Per camera and pixel row: the row_class() of each sub-sample row, and the class shared by the
-  // centre and all sub-sample rows (or 0).
+  // Column constants a = (u - cx) / f of the pixel centres and sub-sample columns, and per camera
+  // and pixel row the RowInfo of the centre row and of each sub-sample row, plus the class shared
+  // by all of them (0 when they differ).
+  std::vector<double> a_centre(static_cast<std::size_t>(W)), a_sub(static_cast<std::size_t>(W * n));
+  for (int x = 0; x < W; ++x) {
+    const double u = x;
+    a_centre[static_cast<std::size_t>(x)] = (u - sc.camera.cx) / sc.camera.focal_px;
+    for (int sx = 0; sx < n; ++sx) {
+      const double us = x + off[sx] - 0.5;
+      a_sub[static_cast<std::size_t>(x * n + sx)] = (us - sc.camera.cx) / sc.camera.focal_px;
+    }
+  }
+  std::vector<RowInfo> row_centre(static_cast<std::size_t>(2 * H)), row_sub(static_cast<std::size_t>(2 * H * n));
   std::vector<int> pixel_row_class(static_cast<std::size_t>(2 * H));
-  std::vector<int> sub_row_class(static_cast<std::size_t>(2 * H * n));
   for (int k = 0; k < 2; ++k)
     for (int y = 0; y < H; ++y) {
-      int cls = ft.row_class(f.frames[k], y);
+      const std::size_t r = static_cast<std::size_t>(k * H + y);
+      row_centre[r] = ft.row_info(f.frames[k], y);
+      int cls = row_centre[r].cls;
       for (int sy = 0; sy < n; ++sy) {
-        const int c = ft.row_class(f.frames[k], y + off[sy] - 0.5);
-        sub_row_class[static_cast<std::size_t>((k * H + y) * n + sy)] = c;
-        if (c != cls) cls = 0;
+        const RowInfo ri = ft.row_info(f.frames[k], y + off[sy] - 0.5);
+        row_sub[r * static_cast<std::size_t>(n) + static_cast<std::size_t>(sy)] = ri;
+        if (ri.cls != cls) cls = 0;
       }
-      pixel_row_class[static_cast<std::size_t>(k * H + y)] = cls;
+      pixel_row_class[r] = cls;
     }
   const int rows = 2 * H;
 #if defined(FS_HAVE_OPENMP)
@@ -857,17 +900,19 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
     const CameraFrame& cf = f.frames[k];
     const TileLists& tl = tiles[k];
     const int row_cls = pixel_row_class[static_cast<std::size_t>(row)];
-    const int* sub_cls = sub_row_class.data() + static_cast<std::size_t>(row) * n;
-    bool lazy[kMaxSub * kMaxSub];  // sub-sample known to see sub_cls (ground/sky), not traced yet
+    const RowInfo& rc = row_centre[static_cast<std::size_t>(row)];
+    const RowInfo* rs = row_sub.data() + static_cast<std::size_t>(row) * n;
+    bool lazy[kMaxSub * kMaxSub];  // sub-sample known to see its row's class (ground/sky), not traced yet
     const int* trow = tl.start.data() + (y / kTile) * tl.tw;
     Hit sub[kMaxSub * kMaxSub];  // [0, n * n) written for every pixel before use
     Vec3 sdir[kMaxSub * kMaxSub];
     for (int x = 0; x < W; ++x) {
       const int* cand = tl.items.data() + trow[x / kTile];
       const int ncand = trow[x / kTile + 1] - trow[x / kTile];
+      const double* as = a_sub.data() + static_cast<std::size_t>(x) * n;
       Vec3 cdir;
       bool same = true;
-      Hit centre = ft.trace(cf, k, x, y, cand, ncand, cdir);
+      Hit centre = ft.trace(cf, k, x, a_centre[static_cast<std::size_t>(x)], rc, cand, ncand, cdir);
       // Every sample of the pixel sees the same ground or sky when its rows agree (row_cls) and no
       // obstacle's screen box reaches into the pixel: then the sub-sample rays are not traced.
       bool clean = row_cls != 0;
@@ -877,18 +922,18 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
       }
       for (int sy = 0, i = 0; sy < n && !clean; ++sy)
         for (int sx = 0; sx < n; ++sx, ++i) {
-          const double u = x + off[sx] - 0.5, v = y + off[sy] - 0.5;
+          const double u = x + off[sx] - 0.5, v = rs[sy].v;
           // A sample on a ground/sky row that no obstacle's screen box holds sees that class.
-          lazy[i] = sub_cls[sy] != 0;
+          lazy[i] = rs[sy].cls != 0;
           for (int j = 0; j < ncand && lazy[i]; ++j) {
             const Placed& o = f.placed[static_cast<std::size_t>(cand[j])];
             lazy[i] = u < o.u0[k] || u > o.u1[k] || v < o.v0[k] || v > o.v1[k];
           }
           if (lazy[i]) {
-            sub[i].what = sub_cls[sy];
+            sub[i].what = rs[sy].cls;
             sub[i].face = 0;
           } else {
-            sub[i] = ft.trace(cf, k, u, v, cand, ncand, sdir[i]);
+            sub[i] = ft.trace(cf, k, u, as[sx], rs[sy], cand, ncand, sdir[i]);
           }
           same = same && sub[i].what == centre.what && sub[i].face == centre.face;
         }
@@ -898,7 +943,7 @@ RenderResult World::render(const Pose2& pose, double time_s, int threads) const 
         acc = tr.shade_dir(cf, cdir, centre, f.sun, f.sun_c, f.amb_c, f.horizon);
       } else {
         for (int i = 0; i < n * n; ++i) {
-          if (lazy[i]) sub[i] = ft.trace(cf, k, x + off[i % n] - 0.5, y + off[i / n] - 0.5, cand, ncand, sdir[i]);
+          if (lazy[i]) sub[i] = ft.trace(cf, k, x + off[i % n] - 0.5, as[i % n], rs[i / n], cand, ncand, sdir[i]);
           ft.surface(k, sdir[i], sub[i]);
           acc = acc + tr.shade_dir(cf, sdir[i], sub[i], f.sun, f.sun_c, f.amb_c, f.horizon);
         }
