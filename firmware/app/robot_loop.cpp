@@ -625,7 +625,10 @@ LoopResult RobotLoop::run() {
           (struck ? res.struck : res.collided) = true;
         }
       }
-      if (res.struck) break;
+      if (res.struck) {
+        end_status = "struck";  // the run ends at the contact (the frame is not logged)
+        break;
+      }
     } else {
       I.motors->set(wc.left, wc.right);
       applied = wc.twist;
@@ -657,7 +660,7 @@ LoopResult RobotLoop::run() {
             {"pose", {pose.x, pose.y, pose.yaw}},
             {"cmd", {applied.v, applied.omega}},
             {"wheels", {wc.left, wc.right}},
-            {"status", held ? "held" : robot::to_string(plan.status)},
+            {"status", held ? "held" : (plan.evading ? "evading" : robot::to_string(plan.status))},
             {"front_stop", ahead},
             {"map_cells", world_map.occupied_count()}};
     if (I.world) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};

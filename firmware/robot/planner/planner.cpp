@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "fuzzystereo/robot/odometry.hpp"
 #include "grid.hpp"
 
 namespace fs::robot {
@@ -176,6 +177,22 @@ ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::ve
   return e;
 }
 
+// Escape score of driving (v, w): the smallest signed surface gap to the obstacles (moving ones at
+// c + t vel) from one control period on to the horizon, sampled every sim_step (negative =
+// overlap). Starting at one period, not at 0: every arc starts from the same pose.
+double worst_gap(const Pose2D& pose, double v, double w, const std::vector<CircleObstacle>& obs,
+                 const PlannerParams& pp, const RobotParams& rp, bool moving_only = false) {
+  double worst = std::numeric_limits<double>::infinity();
+  for (double t = pp.control_period_s; t <= pp.horizon_s + 1e-9; t += pp.sim_step_s) {
+    const Pose2D p = integrate_pose(pose, {v, w}, t);
+    for (const CircleObstacle& o : obs) {
+      if (moving_only && o.vel.x == 0.0 && o.vel.y == 0.0) continue;
+      worst = std::min(worst, norm(o.c + t * o.vel - p.pos()) - o.r - rp.radius_m);
+    }
+  }
+  return worst;
+}
+
 }  // namespace
 
 PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
@@ -218,6 +235,9 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   double best_cost = kInf;
   BodyTwist best{};
   double best_gap = 0;
+  // The arc that keeps the largest worst-case gap: the way out when every arc is unsafe.
+  double escape_gap = -std::numeric_limits<double>::infinity();
+  BodyTwist escape{};
   const double carrot_dist0 = norm(out.carrot - pos);
   for (int iv = 0; iv < nv; ++iv) {
     const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
@@ -228,7 +248,14 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
       if (a.t_collide != kInf) {
         // admissible only if braking from (v, w) after one control period stays clear
         const ArcEval b = eval_arc(pose, v, w, true, near, out.carrot, pp_, rp_);
-        if (b.t_collide != kInf) continue;
+        if (b.t_collide != kInf) {
+          const double g = worst_gap(pose, v, w, near, pp_, rp_);
+          if (g > escape_gap) {
+            escape_gap = g;
+            escape = {v, w};
+          }
+          continue;
+        }
         collide_pen = 1.0 - a.t_collide / pp_.horizon_s;  // prefer arcs that stay clear longer
       }
       // Progress: how much closer the arc (before any contact) gets to the carrot; heading: the
@@ -250,7 +277,23 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
     }
   }
   if (best_cost == kInf) {
-    out.status = PlanStatus::kWaiting;  // brake: nothing is safe to drive right now
+    // Nothing is safe to drive right now. Braking is right unless something is coming at the
+    // standing robot (a moving obstacle: a static one never reaches a robot that stands; the
+    // obstacles are grown by their uncertainty, so the robot may already be "inside" one): then
+    // take the arc that keeps the largest worst-case gap over the horizon, if it beats standing
+    // (every frame re-plans, and the dynamic window widens as the robot speeds up).
+    double now_moving = std::numeric_limits<double>::infinity();
+    for (const CircleObstacle& o : near)
+      if (o.vel.x != 0.0 || o.vel.y != 0.0) now_moving = std::min(now_moving, norm(o.c - pos) - o.r - rp_.radius_m);
+    const double stand_moving = worst_gap(pose, 0.0, 0.0, near, pp_, rp_, true);
+    const double stand_gap = worst_gap(pose, 0.0, 0.0, near, pp_, rp_);
+    if (stand_moving < pp_.collision_margin_m && stand_moving < now_moving - 0.02 && escape_gap > stand_gap + 0.03) {
+      out.status = PlanStatus::kMoving;
+      out.evading = true;
+      out.cmd = escape;
+      return out;
+    }
+    out.status = PlanStatus::kWaiting;  // brake
     out.cmd = {0.0, 0.0};
     return out;
   }

@@ -135,6 +135,35 @@ TEST(Mixer, LimitsSpeedAccelerationAndKeepsCurvature) {
   EXPECT_EQ(nan.right, 0.0);
 }
 
+// A cylinder crossing towards the standing robot from its left (outside the arcs' reach to dodge
+// cleanly): no arc is safe, and standing is hit first; the planner takes the arc whose
+// worst-case gap is largest instead of braking. The same cylinder standing still is not a reason to move.
+TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
+  const RobotParams rp = robot();
+  PlannerParams pp = planner();
+  const Planner pl(pp, rp);
+  const Pose2D pose{0.0, 0.0, 0.0};
+  std::vector<CircleObstacle> obs = {{{0.0, 0.6}, 0.2, {0.0, -0.5}}};
+  const PlanOutput out = pl.plan(pose, {}, {5.0, 0.0}, obs);
+  EXPECT_TRUE(out.evading);
+  EXPECT_EQ(out.status, PlanStatus::kMoving);
+  EXPECT_GT(out.cmd.v, 0.0);
+  // Driving the chosen arc keeps the robot clear longer than standing does.
+  auto first_contact = [&](BodyTwist tw) {
+    for (double t = 0.0; t <= pp.horizon_s; t += 0.01) {
+      const Pose2D p = integrate_pose(pose, tw, t);
+      const Vec2 o = obs[0].c + t * obs[0].vel;
+      if (norm(o - p.pos()) < obs[0].r + rp.radius_m) return t;
+    }
+    return pp.horizon_s + 1.0;
+  };
+  EXPECT_GT(first_contact(out.cmd), first_contact({0.0, 0.0}) + 0.04);
+
+  obs[0].vel = {0.0, 0.0};
+  const PlanOutput calm = pl.plan(pose, {}, {5.0, 0.0}, obs);
+  EXPECT_FALSE(calm.evading);
+}
+
 TEST(NavSuite, ReachesGoalsWithoutCollisionAndStopsWhenBlocked) {
 #ifdef FS_TEST_EMULATED
   const int n_free = 30, n_blocked = 10;  // under qemu (10-30x slower): a subset of the same seeds

@@ -33,6 +33,8 @@ struct PlanOutput {
   Vec2 carrot;                   // lookahead point the local planner steered to
   bool reduced_margin = false;   // the path needed the bare collision margin (a tight gap)
   double clearance_m = 0;        // smallest predicted surface gap along the chosen arc [m]
+  bool evading = false;          // every arc was unsafe and a moving obstacle would hit the standing
+                                 // robot: cmd is the arc whose first contact comes latest
 };
 
 class Planner {
