@@ -29,7 +29,7 @@ namespace stdfs = std::filesystem;
 namespace {
 
 struct EvalOptions {
-  std::string dataset, json, config;
+  std::string dataset, json, config, disparity_cache;
   int limit = 0;
   int max_disparity = 0;
   bool oracle = false;
@@ -213,6 +213,44 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
   std::fflush(stderr);
 }
 
+// Matcher disparity cache (--disparity-cache DIR): DIR/NNNNNN_10.png is a 16-bit PNG holding
+// q4 + 1 (0 = kInvalidDisp), so a cached map is bit-identical to the matcher's Q4 output (KITTI's
+// d*256 with 0 = invalid would lose valid d = 0). DIR/matcher_config.toml records the matcher
+// parameters the maps were made with; a different matcher config is refused (the cache would lie).
+// Use: tuning detection parameters without re-running the matcher on every evaluation.
+void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml) {
+  stdfs::create_directories(dir);
+  const stdfs::path p = dir / "matcher_config.toml";
+  if (stdfs::exists(p)) {
+    std::ifstream f(p);
+    const std::string have((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    if (have != matcher_toml)
+      throw UserError("--disparity-cache '" + dir.string() + "' was made with a different matcher config (" + p.string() +
+                      "); use another directory or delete it");
+    return;
+  }
+  std::ofstream f(p);
+  f << matcher_toml;
+  if (!f) throw UserError("cannot write '" + p.string() + "'");
+}
+
+bool read_cached_disp(const stdfs::path& p, ImageI16* disp) {
+  if (!stdfs::exists(p)) return false;
+  const cv::Mat m = cv::imread(p.string(), cv::IMREAD_UNCHANGED);
+  if (m.empty() || m.type() != CV_16UC1) throw UserError("'" + p.string() + "' is not a 16-bit disparity cache PNG");
+  *disp = ImageI16(m.cols, m.rows);
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x) disp->at(x, y) = std::int16_t(int(m.at<std::uint16_t>(y, x)) - 1);
+  return true;
+}
+
+void write_cached_disp(const stdfs::path& p, const ImageI16& disp) {
+  cv::Mat m(disp.height, disp.width, CV_16UC1);
+  for (int y = 0; y < disp.height; ++y)
+    for (int x = 0; x < disp.width; ++x) m.at<std::uint16_t>(y, x) = std::uint16_t(std::max(0, disp.at(x, y) + 1));
+  if (!cv::imwrite(p.string(), m)) throw UserError("cannot write '" + p.string() + "'");
+}
+
 void run_detect_eval(const EvalOptions& o) {
   const stdfs::path root(o.dataset);
   const stdfs::path marker = root / "fuzzystereo_sim.json";
@@ -239,6 +277,9 @@ void run_detect_eval(const EvalOptions& o) {
   const Detector detector(dp);
   std::unique_ptr<Matcher> matcher;
   if (!o.oracle) matcher = std::make_unique<Matcher>(cfg.matcher, load_fis_definition(""));
+  const bool use_cache = !o.oracle && !o.disparity_cache.empty();
+  if (use_cache) check_cache_config(o.disparity_cache, config_to_toml(cfg.matcher));
+  bool timed = !o.oracle;  // false once a frame's disparity came from the cache (no matcher timing)
 
   std::map<std::string, Tally> per_type;
   Tally all;
@@ -267,14 +308,19 @@ void run_detect_eval(const EvalOptions& o) {
     const cv::Mat lc = read_image((tr / "image_2" / (s + ".png")).string(), cv::IMREAD_COLOR);
     ImageI16 disp;
     StageTimings mt;
+    bool frame_matched = false;
     if (o.oracle) {
       disp = read_kitti_disparity_q4((tr / "disp_occ_0" / (s + ".png")).string());
+    } else if (use_cache && read_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), &disp)) {
+      timed = false;
     } else {
       const cv::Mat rc = read_image((tr / "image_3" / (s + ".png")).string(), cv::IMREAD_COLOR);
       if (rc.size() != lc.size()) throw UserError("frame " + s + ": left and right sizes differ");
       const MatchResult mr = matcher->match(to_core_gray(lc), to_core_gray(rc));
       disp = mr.disp_final;
       mt = mr.timings;
+      frame_matched = true;
+      if (use_cache) write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
     }
     if (disp.width != lc.cols || disp.height != lc.rows) throw UserError("frame " + s + ": disparity size differs from the image");
     const DetectResult r = detector.detect(disp, to_core_rgb(lc), calib);
@@ -285,11 +331,15 @@ void run_detect_eval(const EvalOptions& o) {
     for (std::size_t k = 0; k < t.detect_ms.size(); ++k) t.detect_ms[k] = r.timings.ms[k];
     per_type[type].add(t);
     all.add(t);
-    nlohmann::json fj = tally_json(t, !o.oracle);
+    nlohmann::json fj = tally_json(t, frame_matched);
     fj["frame"] = s;
     fj["type"] = type;
     fj["missed"] = t.missed;
     fj["false_positive_boxes"] = t.false_pos;
+    nlohmann::json dets = nlohmann::json::array();
+    for (const Obstacle& x : r.obstacles)
+      dets.push_back({{"box", {x.x0, x.y0, x.x1, x.y1}}, {"distance_m", x.distance_m}, {"pixels", x.pixel_count}});
+    fj["detections"] = dets;
     frames.push_back(fj);
   }
   progress(stems.size(), stems.size(), "done");
@@ -304,10 +354,11 @@ void run_detect_eval(const EvalOptions& o) {
   out["format"] = "fuzzystereo-detect-eval";
   out["dataset"] = o.dataset;
   out["oracle_disparity"] = o.oracle;
+  out["disparity_cache"] = use_cache ? nlohmann::json(o.disparity_cache) : nlohmann::json(nullptr);
   out["criteria"] = {{"min_iou", o.min_iou}, {"max_rel_distance", o.max_rel_dist}, {"min_visible_pixels", o.min_visible}};
   out["config_toml"] = config_to_toml(cfg.values);
   auto row = [&](const std::string& name, const Tally& t) {
-    const nlohmann::json j = tally_json(t, !o.oracle);
+    const nlohmann::json j = tally_json(t, timed);
     auto pct = [](const nlohmann::json& v) { return v.is_null() ? NAN : v.get<double>() * 100.0; };
     auto val = [](const nlohmann::json& v) { return v.is_null() ? NAN : v.get<double>(); };
     std::printf("%-16s %6d %5d %7.1f %7.1f %7.2f %7.3f %7.3f %8.1f %8.1f %9.1f %9.2f %6.3f\n", name.c_str(), t.frames, t.gt,
@@ -338,6 +389,9 @@ void add_detect_eval_command(CLI::App& app) {
   c->add_option("--config", o->config, "TOML config (defaults: common/config/default.toml)");
   c->add_option("--limit", o->limit, "first N frames only")->check(CLI::NonNegativeNumber);
   c->add_option("--max-disparity", o->max_disparity, "override cost.max_disparity (default: the dataset's max_disparity)");
+  c->add_option("--disparity-cache", o->disparity_cache,
+                 "directory caching the matcher's disparity per frame (read when present, else matched and written; "
+                 "refused when made with another matcher config); matcher timings are then not reported");
   c->add_flag("--oracle-disparity", o->oracle, "use the ground-truth disparity instead of the matcher (isolates detection)");
   c->add_option("--min-iou", o->min_iou, "box IoU for a detection to match a GT obstacle")->check(CLI::Range(0.0, 1.0));
   c->add_option("--max-rel-distance", o->max_rel_dist, "largest |Z_det - Z_gt| / Z_gt of a match")->check(CLI::Range(0.0, 10.0));

@@ -32,7 +32,9 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.road_slope_max = v.num("detect.road_slope_max");
   p.road_min_support_pct = v.num("detect.road_min_support_pct");
   p.road_tolerance_px = v.num("detect.road_tolerance_px");
+  p.road_tolerance_rel = v.num("detect.road_tolerance_rel");
   p.road_close_radius = v.integer("detect.road_close_radius");
+  p.road_fill_invalid_px = v.integer("detect.road_fill_invalid_px");
   p.sky_enabled = v.flag("detect.sky_enabled");
   p.sky_limit = v.str("detect.sky_limit") == "fraction" ? SkyLimit::Fraction : SkyLimit::Horizon;
   p.sky_upper_fraction = v.num("detect.sky_upper_fraction");
@@ -49,6 +51,7 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.cc_max_rel_step = v.num("detect.cc_max_rel_step");
   p.cc_min_step_px = v.num("detect.cc_min_step_px");
   p.min_area_px = v.integer("detect.min_area_px");
+  p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
   p.min_height_m = v.num("detect.min_height_m");

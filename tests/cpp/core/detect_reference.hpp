@@ -27,13 +27,35 @@ inline ImageI32 v_disparity(const ImageI16& disp, int bins) {
   return v;
 }
 
-inline ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tol_px) {
+inline ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tol_px,
+                           double tol_rel = 0.0) {
   ImageU8 m(disp.width, disp.height, 0);
-  const int tol = int(std::lround(tol_px * kDispScale));
   for (int y = 0; y < disp.height; ++y)
     for (int x = 0; x < disp.width; ++x) {
       const int l = line_q4[std::size_t(y)], d = disp.at(x, y);
-      m.at(x, y) = l != INT32_MIN && d != kInvalidDisp && std::abs(d - l) <= tol;
+      if (l == INT32_MIN) continue;
+      const int tol = int(std::lround(tol_px * kDispScale + tol_rel * (l > 0 ? l : 0)));
+      m.at(x, y) = d != kInvalidDisp && std::abs(d - l) <= tol;
+    }
+  return m;
+}
+
+// Road completion, pixel by pixel: an invalid pixel in a row with a line value becomes road when
+// the invalid run through it is <= max_run long and the first valid pixels to its left and right are
+// road (a side that reaches the image border counts as road, but not both sides).
+inline ImageU8 complete_road(const ImageU8& road, const ImageI16& disp, const std::vector<std::int32_t>& line_q4,
+                             int max_run) {
+  ImageU8 m = road;
+  if (max_run <= 0) return m;
+  for (int y = 0; y < disp.height; ++y)
+    for (int x = 0; x < disp.width; ++x) {
+      if (line_q4[std::size_t(y)] == INT32_MIN || disp.at(x, y) != kInvalidDisp) continue;
+      int l = x, r = x;
+      while (l >= 0 && disp.at(l, y) == kInvalidDisp) --l;
+      while (r < disp.width && disp.at(r, y) == kInvalidDisp) ++r;
+      const bool at_l = l < 0, at_r = r >= disp.width;
+      if (r - l - 1 > max_run || (at_l && at_r)) continue;
+      if ((at_l || road.at(l, y)) && (at_r || road.at(r, y))) m.at(x, y) = 1;
     }
   return m;
 }

@@ -63,7 +63,41 @@ TEST(DetectStages, RoadPixelsAndClosingMatchReference) {
     const ImageU8 fast = detect::road_pixels(s.disp, table, p.road_tolerance_px);
     expect_same(fast, ref::road_pixels(s.disp, table, p.road_tolerance_px), "road pixels");
     for (int r : {0, 1, 2, 5}) expect_same(detect::close_mask(fast, r), ref::close_mask(fast, r), "closing");
+    // Band widening with disparity: bit-exact, and it only ever adds pixels (the band is wider).
+    for (double rel : {0.02, 0.1}) {
+      const ImageU8 wide = detect::road_pixels(s.disp, table, p.road_tolerance_px, rel);
+      expect_same(wide, ref::road_pixels(s.disp, table, p.road_tolerance_px, rel), "road pixels, relative band");
+      std::size_t lost = 0, gained = 0;
+      for (std::size_t i = 0; i < wide.size(); ++i) lost += fast.data[i] && !wide.data[i], gained += wide.data[i] && !fast.data[i];
+      EXPECT_EQ(lost, 0u);
+      if (c.noise > 0.5 && rel >= 0.1) EXPECT_GT(gained, 0u) << c.w << "x" << c.h;
+    }
+    // Road completion: bit-exact, and only invalid pixels change.
+    const ImageU8 closed = detect::close_mask(fast, 2);
+    for (int run : {0, 3, 16, 1000}) {
+      const ImageU8 done = detect::complete_road(closed, s.disp, table, run);
+      expect_same(done, ref::complete_road(closed, s.disp, table, run), "road completion");
+      for (std::size_t i = 0; i < done.size(); ++i)
+        if (done.data[i] != closed.data[i]) ASSERT_EQ(s.disp.data[i], kInvalidDisp);
+    }
   }
+}
+
+TEST(DetectStages, RoadCompletionRuns) {
+  // One row, line value present: road R, invalid -, other valid o.
+  //   x: 0 1 2 3 4 5 6 7 8 9
+  //      - - R - - R o - - R ... then an invalid run touching the right border after road.
+  const int w = 14;
+  ImageI16 d(w, 1, 100);
+  ImageU8 road(w, 1, 0);
+  for (int x : {0, 1, 3, 4, 7, 8, 11, 12, 13}) d.at(x, 0) = kInvalidDisp;
+  for (int x : {2, 5, 9, 10}) road.at(x, 0) = 1;
+  const std::vector<std::int32_t> line{100};
+  const ImageU8 m = detect::complete_road(road, d, line, 2);
+  const int expect[w] = {1, 1, 1, 1, 1, 1, 0, 0, 0, 1, 1, 0, 0, 0};  // 7-8: left neighbour o; 11-13: run of 3 > 2
+  for (int x = 0; x < w; ++x) EXPECT_EQ(m.at(x, 0), expect[x]) << "x = " << x;
+  EXPECT_EQ(detect::complete_road(road, d, line, 3).at(12, 0), 1);  // border run of 3 allowed at max_run 3
+  EXPECT_EQ(detect::complete_road(road, d, {INT32_MIN}, 3).at(0, 0), 0);  // above the horizon: never
 }
 
 TEST(DetectStages, ClosingOnRandomMasks) {

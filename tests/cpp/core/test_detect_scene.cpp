@@ -118,6 +118,7 @@ TEST(DetectScene, SpeckleRemovedByUDisparityAndArea) {
   loose.udisp_min_height_px = 1;
   loose.udisp_min_run_px = 1;
   loose.min_area_px = 5;
+  loose.min_area_m2 = 0.0;   // 36 px at 1 m = 0.0009 m^2: the physical-area filter would drop them too
   loose.min_height_m = 0.0;  // the blobs are 6 rows = 3 cm at 1 m: the height filter would drop them too
   loose.merge_gap_px = -1;   // and 18 px apart at 5 % disparity steps: keep them separate
   const DetectResult r2 = Detector(loose).detect(s.disp, s.rgb, s.calib);
@@ -188,6 +189,9 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(p.udisp_min_height_px, d.udisp_min_height_px);
   EXPECT_EQ(p.udisp_min_run_px, d.udisp_min_run_px);
   EXPECT_EQ(p.min_area_px, d.min_area_px);
+  EXPECT_DOUBLE_EQ(p.min_area_m2, d.min_area_m2);
+  EXPECT_DOUBLE_EQ(p.road_tolerance_rel, d.road_tolerance_rel);
+  EXPECT_EQ(p.road_fill_invalid_px, d.road_fill_invalid_px);
   EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
   EXPECT_DOUBLE_EQ(p.far_m, d.far_m);
   for (std::size_t i = 0; i < 3; ++i) {
@@ -234,6 +238,7 @@ TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
   const StereoCalib calib{200.0, 50.0, 30.0, 0.1, 0.5, 0.0};
   DetectParams p;
   p.min_area_px = 10;
+  p.min_area_m2 = 0.0;  // tested on its own below
   p.merge_gap_px = 8;
   p.min_height_m = 0.1;
   ImageI32 labels;
@@ -250,6 +255,27 @@ TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
   p.merge_gap_px = 8;
   p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+}
+
+TEST(DetectScene, PhysicalAreaDropsSmallSurfacesAtTheirDepth) {
+  // The same 20x20 = 400-px patch at d = 20 px (Z = 1 m at f = 200 px, B = 0.1 m: 400 * (1/200)^2
+  // = 0.01 m^2) and at d = 4 px (Z = 5 m: 0.25 m^2). A pixel-count limit cannot tell them apart.
+  ImageI32 comp(100, 40, 0);
+  ImageI16 disp(100, 40, kInvalidDisp);
+  for (int y = 10; y < 30; ++y)
+    for (int x = 0; x < 20; ++x) comp.at(10 + x, y) = 1, comp.at(60 + x, y) = 2, disp.at(10 + x, y) = 320, disp.at(60 + x, y) = 64;
+  const StereoCalib calib{200.0, 50.0, 20.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_height_m = 0.0;
+  p.min_area_m2 = 0.02;
+  auto o = detect::measure_obstacles(comp, 2, disp, calib, p, nullptr);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_NEAR(o[0].distance_m, 5.0, 1e-9);
+  p.min_area_m2 = 0.005;
+  EXPECT_EQ(detect::measure_obstacles(comp, 2, disp, calib, p, nullptr).size(), 2u);
+  p.min_area_m2 = 0.0;  // off
+  EXPECT_EQ(detect::measure_obstacles(comp, 2, disp, calib, p, nullptr).size(), 2u);
 }
 
 }  // namespace

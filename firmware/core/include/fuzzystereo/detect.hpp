@@ -48,7 +48,10 @@ struct DetectParams {
   double road_slope_max = 2.0;
   double road_min_support_pct = 5.0;   // line accepted when inliers >= this % of valid pixels
   double road_tolerance_px = 1.0;      // pixel is road when |d - (a*v + b)| <= this [px]
+  double road_tolerance_rel = 0.02;    // ... plus this share of the line's disparity a*v + b (0 = off)
   int road_close_radius = 4;           // closing with a (2r+1)^2 square; 0 = off [px]
+  int road_fill_invalid_px = 128;      // after closing, a row run of invalid pixels up to this long between
+                                       // road pixels (or road and the border) is road (0 = off) [px]
   // ---- sky, HSV (eq. 18-21) ----
   bool sky_enabled = true;
   SkyLimit sky_limit = SkyLimit::Horizon;
@@ -71,6 +74,7 @@ struct DetectParams {
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
   int min_area_px = 200;           // smaller components are dropped
+  double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
   double near_m = 2.0;             // Z < near_m: near (red)
   double far_m = 5.0;              // Z >= far_m: far (blue); otherwise mid (green)
@@ -114,7 +118,7 @@ struct DetectResult {
   RoadLine road;
   std::vector<std::int32_t> road_line_q4;  // per row: expected Q4 disparity (INT32_MIN above horizon)
   ImageU8 road_raw;             // 1 = on the line (before closing)
-  ImageU8 road_mask;            // 1 = road (after closing)
+  ImageU8 road_mask;            // 1 = road (after closing and invalid-run completion)
   bool sky_skipped = true;      // no colour image (mono camera) or sky_enabled = false
   int sky_rows = 0;             // rows 0 .. sky_rows-1 were searched
   ImageU8 sky_mask;             // 1 = sky
@@ -152,11 +156,17 @@ ImageI32 v_disparity(const ImageI16& disp, int bins);
 RoadLine fit_road_line(const ImageI32& vdisp, std::int64_t valid_pixels, const DetectParams& p);
 // Per row, the line's disparity in Q4 (rows above the horizon: INT32_MIN).
 std::vector<std::int32_t> road_line_table(const RoadLine& line, int rows);
-// 1 where the pixel is valid and |q4 - line_q4[v]| <= tolerance (rows below the horizon).
-ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tolerance_px);
+// 1 where the pixel is valid and |q4 - line_q4[v]| <= tol_q4(v) (rows below the horizon), with
+// tol_q4(v) = round(tolerance_px * 16 + tolerance_rel * line_q4[v]) (band widening with disparity).
+ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tolerance_px,
+                    double tolerance_rel = 0.0);
 // Binary closing (dilate then erode) with a (2r+1)^2 square; outside the image counts as 0 for the
 // dilation and 1 for the erosion, so the closing never eats the border.
 ImageU8 close_mask(const ImageU8& mask, int radius);
+// Road completion (docs/detection.md "(a)"): in rows with a line value, each run of invalid pixels
+// (disp < 0) of at most max_run pixels whose bounding pixels are both road (one bounding pixel at the
+// image border) becomes road. Only invalid pixels change, so the obstacle candidates do not. 0 = copy.
+ImageU8 complete_road(const ImageU8& road, const ImageI16& disp, const std::vector<std::int32_t>& line_q4, int max_run);
 
 // eq. (18)-(21) in integers: H in degrees 0..359, S and V in 0..100, each rounded to nearest.
 struct Hsv {

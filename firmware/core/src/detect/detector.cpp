@@ -68,8 +68,9 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.vdisp = detect::v_disparity(disp, r.bins);
   if (p.road_enabled) r.road = detect::fit_road_line(r.vdisp, valid, p);
   r.road_line_q4 = detect::road_line_table(r.road, h);
-  r.road_raw = detect::road_pixels(disp, r.road_line_q4, p.road_tolerance_px);
-  r.road_mask = detect::close_mask(r.road_raw, p.road_close_radius);
+  r.road_raw = detect::road_pixels(disp, r.road_line_q4, p.road_tolerance_px, p.road_tolerance_rel);
+  r.road_mask = detect::complete_road(detect::close_mask(r.road_raw, p.road_close_radius), disp, r.road_line_q4,
+                                      p.road_fill_invalid_px);
   lap(DetectStage::Road);
 
   // (b) sky: HSV eq. (18)-(21) in the upper part (above the horizon, or the upper fraction).

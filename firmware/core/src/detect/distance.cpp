@@ -95,6 +95,11 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
     // Physical size: an obstacle lower than min_height_m (box rows * Z / f) is road or matcher noise.
     if (double(o.y1 - o.y0 + 1) * o.distance_m / calib.focal_px < p.min_height_m) continue;
+    // Physical area (our addition, docs/detection.md "(e)"): the pixels cover n * (Z/f)^2 m^2.
+    // Matcher speckle at a wrong depth is a few hundred pixels at any Z; a real surface that small
+    // in m^2 is below what the matcher resolves reliably.
+    const double zf = o.distance_m / calib.focal_px;
+    if (p.min_area_m2 > 0 && double(a.n) * zf * zf < p.min_area_m2) continue;
     o.lateral_m = (0.5 * (o.x0 + o.x1) - calib.cx) * o.distance_m / calib.focal_px;
     o.cls = classify_distance(o.distance_m, p);
     obs.push_back(o);

@@ -141,17 +141,49 @@ std::vector<std::int32_t> road_line_table(const RoadLine& line, int rows) {
 }
 
 // Pixels on the road line: |q4 - line_q4(v)| <= tolerance, rows with a line value only.
-ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tolerance_px) {
+// The band grows with the line's disparity when tolerance_rel > 0 (docs/detection.md "(a)"): the
+// matcher's road error grows towards the bottom rows, where the road is steep in disparity.
+ImageU8 road_pixels(const ImageI16& disp, const std::vector<std::int32_t>& line_q4, double tolerance_px,
+                    double tolerance_rel) {
   ImageU8 m(disp.width, disp.height, 0);
-  const std::int32_t tol = std::int32_t(std::lround(tolerance_px * kDispScale));
   for (int y = 0; y < disp.height; ++y) {
     const std::int32_t l = line_q4[std::size_t(y)];
     if (l == INT32_MIN) continue;
+    const std::int32_t tol = std::int32_t(std::lround(tolerance_px * kDispScale + tolerance_rel * std::max(0, l)));
     const std::int16_t* d = disp.row(y);
     std::uint8_t* o = m.row(y);
     // Valid disparities in [l - tol, l + tol]; lo >= 0 keeps kInvalidDisp out.
     const std::int32_t lo = std::max<std::int32_t>(0, l - tol), hi = l + tol;
     for (int x = 0; x < disp.width; ++x) o[x] = std::uint8_t(d[x] >= lo && d[x] <= hi);
+  }
+  return m;
+}
+
+// Road completion: the matcher leaves long invalid runs on the road (the left occlusion strip, whose
+// width is the road's own disparity, and low-texture patches longer than fill_max_run_px); they are
+// road in the scene but not in road_pixels. Runs bounded by road on both sides (or road and the
+// border) become road. Invalid pixels are never obstacle candidates, so detection is unchanged.
+ImageU8 complete_road(const ImageU8& road, const ImageI16& disp, const std::vector<std::int32_t>& line_q4, int max_run) {
+  ImageU8 m = road;
+  if (max_run <= 0) return m;
+  const int w = disp.width;
+  for (int y = 0; y < disp.height; ++y) {
+    if (line_q4[std::size_t(y)] == INT32_MIN) continue;
+    const std::int16_t* d = disp.row(y);
+    const std::uint8_t* r = road.row(y);
+    std::uint8_t* o = m.row(y);
+    for (int x = 0; x < w;) {
+      if (d[x] >= 0) {
+        ++x;
+        continue;
+      }
+      int e = x;  // [x, e) invalid
+      while (e < w && d[e] < 0) ++e;
+      const bool left_ok = x == 0 || r[x - 1], right_ok = e == w || r[e];
+      const bool some_road = (x > 0 && r[x - 1]) || (e < w && r[e]);
+      if (e - x <= max_run && left_ok && right_ok && some_road) std::fill(o + x, o + e, std::uint8_t(1));
+      x = e;
+    }
   }
   return m;
 }

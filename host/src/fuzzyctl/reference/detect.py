@@ -155,11 +155,13 @@ def fit_road_line(vd: np.ndarray, valid_pixels: int, p: DetectParams) -> tuple[b
     return True, float(ba), float(bb), horizon
 
 
-def road_pixels(disp: np.ndarray, a: float, b: float, horizon: int, tol: float) -> np.ndarray:
+def road_pixels(disp: np.ndarray, a: float, b: float, horizon: int, tol: float, rel: float = 0.0) -> np.ndarray:
+    """|d - (a v + b)| <= tol + rel * (a v + b): the band grows with the line's disparity."""
     h, w = disp.shape
     v = np.arange(h, dtype=np.float64)[:, None]
+    line = a * v + b
     with np.errstate(invalid="ignore"):
-        on = np.abs(disp - (a * v + b)) <= tol + 1e-9
+        on = np.abs(disp - line) <= tol + rel * np.maximum(line, 0.0) + 1e-9
     on &= np.isfinite(disp)
     on[:horizon] = False
     return on.astype(np.uint8)
@@ -171,6 +173,28 @@ def close_mask(mask: np.ndarray, radius: int) -> np.ndarray:
         return mask.copy()
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
     return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, k)
+
+
+def complete_road(road: np.ndarray, disp: np.ndarray, horizon: int, max_run: int) -> np.ndarray:
+    """Rows >= horizon: a NaN run of <= max_run px whose neighbours are road (or road and the image
+    border) becomes road. Only NaN pixels change (they are never obstacle candidates)."""
+    out = road.copy()
+    if max_run <= 0:
+        return out
+    h, w = disp.shape
+    for y in range(max(0, horizon), h):
+        bad = np.isnan(disp[y])
+        if not bad.any():
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.astype(np.int8), [0]))))
+        for x0, x1 in zip(edges[0::2], edges[1::2]):  # [x0, x1) invalid
+            if x1 - x0 > max_run:
+                continue
+            left = bool(road[y, x0 - 1]) if x0 > 0 else None
+            right = bool(road[y, x1]) if x1 < w else None
+            if left is not False and right is not False and (left or right):
+                out[y, x0:x1] = 1
+    return out
 
 
 # ---- (b) sky ----------------------------------------------------------------------------------
@@ -361,8 +385,11 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     bins = int(disp_bin(disp[valid]).max()) + 1 if valid.any() else 1
     vd = v_disparity(disp, bins)
     found, a, b, horizon = (fit_road_line(vd, int(valid.sum()), p) if p.road_enabled else (False, 0.0, 0.0, -1))
-    road_raw = road_pixels(disp, a, b, horizon, p.road_tolerance_px) if found else np.zeros((h, w), np.uint8)
+    road_raw = (road_pixels(disp, a, b, horizon, p.road_tolerance_px, float(p.road_tolerance_rel)) if found
+                else np.zeros((h, w), np.uint8))
     road = close_mask(road_raw, int(p.road_close_radius))
+    if found:
+        road = complete_road(road, disp, horizon, int(p.road_fill_invalid_px))
     skipped = rgb is None or not p.sky_enabled
     rows = 0
     if skipped:
@@ -389,6 +416,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         z = calib["focal_px"] * calib["baseline_m"] / d
         if (ys.max() - ys.min() + 1) * z / calib["focal_px"] < p.min_height_m:
             continue
+        if p.min_area_m2 > 0 and len(xs) * (z / calib["focal_px"]) ** 2 < p.min_area_m2:
+            continue  # physical area (pixels * (Z/f)^2), docs/detection.md "(e)"
         x0, x1 = int(xs.min()), int(xs.max())
         cls = "near" if z < p.near_m else "far" if z >= p.far_m else "mid"
         obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
