@@ -23,6 +23,7 @@ HsvRange range_from(const ConfigValues& v, const std::string& n) {
 DetectParams detect_params_from(const ConfigValues& v) {
   DetectParams p;
   p.fill_max_run_px = v.integer("detect.fill_max_run_px");
+  p.fill_left_border = v.flag("detect.fill_left_border");
   p.road_enabled = v.flag("detect.road_enabled");
   p.road_min_cell_count = v.integer("detect.road_min_cell_count");
   p.road_ransac_iterations = v.integer("detect.road_ransac_iterations");

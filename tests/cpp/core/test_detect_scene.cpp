@@ -224,6 +224,15 @@ TEST(DetectScene, HoleFillTakesTheFartherNeighbourAndLeavesLongRuns) {
   for (int x = 6; x < 12; ++x) EXPECT_EQ(g.at(x, 0), 96) << x;  // border run: its one neighbour
   for (int x = 1; x <= 5; ++x) EXPECT_EQ(g.at(x, 1), 80) << x;
   EXPECT_EQ(detect::fill_holes(d, 0).data, d.data);  // 0 = off
+  // A run at the left border: filled from its one neighbour only with left_border.
+  ImageI16 e(8, 1, kInvalidDisp);
+  e.at(3, 0) = 120, e.at(4, 0) = 40;
+  const ImageI16 on = detect::fill_holes(e, 4, true), off = detect::fill_holes(e, 4, false);
+  for (int x = 0; x < 3; ++x) {
+    EXPECT_EQ(on.at(x, 0), 120) << x;
+    EXPECT_EQ(off.at(x, 0), kInvalidDisp) << x;
+  }
+  for (int x = 5; x < 8; ++x) EXPECT_EQ(off.at(x, 0), 40) << x;  // the right border still fills
 }
 
 TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {

@@ -38,6 +38,8 @@ struct DetectParams {
   // ---- hole filling (our addition, before the road stage) ----
   int fill_max_run_px = 16;             // invalid runs along a row up to this length take the farther
                                        // bounding disparity (0 = off)
+  bool fill_left_border = false;       // fill runs touching the left border too (the band the right
+                                       // camera does not see); see fill_holes
   // ---- road, v-disparity (eq. 16-17) ----
   bool road_enabled = true;
   int road_min_cell_count = 3;         // v-disparity cells with fewer pixels are ignored by the fit
@@ -143,7 +145,7 @@ namespace detect {
 
 // Row-wise background interpolation: invalid runs of <= max_run pixels take min(left, right)
 // bounding disparity (the one neighbour at the image border); 0 = copy unchanged.
-ImageI16 fill_holes(const ImageI16& disp, int max_run);
+ImageI16 fill_holes(const ImageI16& disp, int max_run, bool left_border = true);
 
 // round(d) of a valid Q4 disparity.
 inline int disp_bin(std::int16_t q4) { return (q4 + kDispScale / 2) >> kDispShift; }

@@ -58,7 +58,7 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
     t = n;
   };
   // (0) hole filling (timed with the road stage), then every stage reads r.disp.
-  r.disp = detect::fill_holes(disp_in, p.fill_max_run_px);
+  r.disp = detect::fill_holes(disp_in, p.fill_max_run_px, p.fill_left_border);
   const ImageI16& disp = r.disp;
   std::int64_t valid = 0;
   for (const auto q : disp.data) valid += q >= 0;

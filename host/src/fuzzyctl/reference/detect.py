@@ -188,7 +188,7 @@ def complete_road(road: np.ndarray, disp: np.ndarray, horizon: int, max_run: int
             continue
         edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.astype(np.int8), [0]))))
         for x0, x1 in zip(edges[0::2], edges[1::2]):  # [x0, x1) invalid
-            if x1 - x0 > max_run:
+            if x1 - x0 > max_run or (x0 == 0 and not left_border):
                 continue
             left = bool(road[y, x0 - 1]) if x0 > 0 else None
             right = bool(road[y, x1]) if x1 < w else None
@@ -322,9 +322,10 @@ def components(mask: np.ndarray, disp: np.ndarray, max_step_px: float, rel_step:
     return lab, n
 
 
-def fill_holes(disp: np.ndarray, max_run: int) -> np.ndarray:
+def fill_holes(disp: np.ndarray, max_run: int, left_border: bool = True) -> np.ndarray:
     """Row-wise background interpolation: a NaN run of <= max_run px takes the smaller of its two
-    bounding disparities (its one neighbour at the image border); longer runs stay NaN."""
+    bounding disparities (its one neighbour at the right border, and at the left border only with
+    ``left_border``); longer runs stay NaN."""
     out = disp.copy()
     if max_run <= 0:
         return out
@@ -380,7 +381,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
     h, w = disp.shape
-    disp = fill_holes(disp, int(p.fill_max_run_px))
+    disp = fill_holes(disp, int(p.fill_max_run_px), bool(p.fill_left_border))
     valid = np.isfinite(disp)
     bins = int(disp_bin(disp[valid]).max()) + 1 if valid.any() else 1
     vd = v_disparity(disp, bins)
