@@ -541,7 +541,13 @@ LoopResult RobotLoop::run() {
           // uncertainty growth): a static obstacle's track then coincides with its map cells.
           // (Suite seed 8: 6 of 7 collisions were confirmed tracks of movers 0.07-0.3 m from the
           // robot that this filter had dropped.)
-          if (age_s <= 1.0 && robot::norm(tr.pos() - pose.pos()) <= lp.near_track_m)
+          // Only tracks that look like movers (speed >= moving_speed_mps) and do not already
+          // overlap the robot (an estimate inside the robot is wrong — a real one would be a
+          // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
+          // beside static obstacles' tracks).
+          const double dist = robot::norm(tr.pos() - pose.pos());
+          if (age_s <= 1.0 && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
+              dist > tr.radius_m + I.rp.radius_m)
             obstacles.push_back({tr.pos(), tr.radius_m, {}});
           continue;
         }
