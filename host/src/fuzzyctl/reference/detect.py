@@ -188,7 +188,7 @@ def complete_road(road: np.ndarray, disp: np.ndarray, horizon: int, max_run: int
             continue
         edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.astype(np.int8), [0]))))
         for x0, x1 in zip(edges[0::2], edges[1::2]):  # [x0, x1) invalid
-            if x1 - x0 > max_run or (x0 == 0 and not left_border):
+            if x1 - x0 > max_run:
                 continue
             left = bool(road[y, x0 - 1]) if x0 > 0 else None
             right = bool(road[y, x1]) if x1 < w else None
@@ -336,7 +336,7 @@ def fill_holes(disp: np.ndarray, max_run: int, left_border: bool = True) -> np.n
             continue
         edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.astype(np.int8), [0]))))
         for x0, x1 in zip(edges[0::2], edges[1::2]):  # [x0, x1) invalid
-            if x1 - x0 > max_run:
+            if x1 - x0 > max_run or (x0 == 0 and not left_border):
                 continue
             nb = [disp[y, x0 - 1]] if x0 > 0 else []
             nb += [disp[y, x1]] if x1 < w else []
