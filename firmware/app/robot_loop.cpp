@@ -123,11 +123,10 @@ double depth_sigma(const StereoCalib& calib, double Z) { return 0.25 * Z * Z / (
 // The frame's detections as (a) a camera scan for the static map: per image column the surface
 // point of each detected obstacle (median disparity of its pixels in that column) and the forward
 // distance the column sees free, and (b) point measurements for the tracker, one per compact
-// detection (narrower than kTrackMaxWidthM), centred half its width behind the visible front.
+// detection (narrower than [loop] track_max_width_m), centred half its width behind the visible front.
 void measurements_of(const DetectResult& det, const ImageI16& disp, const StereoCalib& calib, const Pose2D& pose,
                      int max_disparity_px, const LoopParams& lp, robot::CameraScan& scan,
                      std::vector<robot::ObstacleMeasurement>& meas) {
-  const double kMapRangeM = lp.map_range_m, kTrackMaxWidthM = lp.track_max_width_m;
   const int w = disp.width, h = disp.height;
   const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
   auto to_world = [&](double fwd, double left) {
@@ -138,7 +137,7 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
   scan.cx = calib.cx;
   // Nearer than the depth of the largest disparity the matcher searches, the camera sees nothing.
   scan.min_range_m = calib.depth_of(std::max(1, max_disparity_px - 2)) + 0.05;
-  scan.free_range_m.assign(static_cast<std::size_t>(w), kMapRangeM);
+  scan.free_range_m.assign(static_cast<std::size_t>(w), lp.map_range_m);
   scan.hits.clear();
   meas.clear();
   // Columns without enough valid disparities (an obstacle too close to match, a textureless
@@ -174,12 +173,12 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
                                    vals[n / 2] / static_cast<double>(kDispScale));
       double& fr = scan.free_range_m[static_cast<std::size_t>(x)];
       fr = std::min(fr, g.fwd - std::max(0.15, 2.0 * depth_sigma(calib, g.depth)));
-      if (g.fwd <= kMapRangeM) scan.hits.push_back(to_world(g.fwd, g.left));
+      if (g.fwd <= lp.map_range_m) scan.hits.push_back(to_world(g.fwd, g.left));
     }
     // (b) a point measurement for the tracker
-    if (o.distance_m > kMapRangeM + 0.5) continue;
+    if (o.distance_m > lp.map_range_m + 0.5) continue;
     const double width_m = (o.x1 - o.x0 + 1) * o.distance_m / calib.focal_px;
-    if (width_m > kTrackMaxWidthM) continue;
+    if (width_m > lp.track_max_width_m) continue;
     const GroundPt g = ground_of(calib, 0.5 * (o.x0 + o.x1), 0.5 * (o.y0 + o.y1), o.disparity_q4 / static_cast<double>(kDispScale));
     robot::ObstacleMeasurement m;
     m.radius_m = 0.5 * width_m;
@@ -559,7 +558,7 @@ LoopResult RobotLoop::run() {
     BodyTwist want = plan.cmd;
     if (plan.status == robot::PlanStatus::kReached) want = {};
     if (look_around_turned < 2.0 * M_PI) {
-      // First look around once before driving: the camera sees 74 deg, and an obstacle beside the
+      // First look around once before driving: the camera sees 74-100 deg, and an obstacle beside the
       // start would otherwise be unknown until the robot turns into it.
       want = {0.0, kScanYawRate};
       look_around_turned += std::fabs(mixer.last().omega) * I.pp.control_period_s;
@@ -567,7 +566,7 @@ LoopResult RobotLoop::run() {
     } else if (plan.status == robot::PlanStatus::kBlocked) {
       // No path in what the robot knows: look around once (turning on the spot sweeps no new area
       // for a disc robot) before declaring the goal unreachable — a way out may lie outside the
-      // camera's 74 deg view.
+      // camera's view.
       if (scan_turned_rad < 2.0 * M_PI) {
         want = {0.0, kScanYawRate};
         scan_turned_rad += std::fabs(mixer.last().omega) * I.pp.control_period_s;

@@ -4,7 +4,7 @@
 // Why a grid next to the tracker (docs/robot.md "Closed loop"): the tracker (eq. 26-32) is made
 // for compact objects; walls, rows of posts and large close obstacles arrive as many fragments
 // whose positions jitter from frame to frame, which the tracker turns into spurious tracks with
-// ghost velocities. The grid remembers what was seen where (also out of the camera's 74 deg view,
+// ghost velocities. The grid remembers what was seen where (also out of the camera's view,
 // so the robot does not forget an obstacle beside it when it turns) and forgets it only when the
 // camera looks at that place again and sees through it (moving obstacles leave no permanent trail).
 // The planner gets the occupied cells as small static circles; moving obstacles come from the tracker.
