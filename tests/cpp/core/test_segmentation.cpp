@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "fuzzystereo/stages.hpp"
+#include "slic_reference.hpp"
 #include "test_util.hpp"
 
 namespace fs {
@@ -96,6 +97,29 @@ TEST(Slic, SegmentsFollowAStepEdge) {
     for (int r = seg.run_begin[std::size_t(s)]; r < seg.run_begin[std::size_t(s) + 1]; ++r)
       for (int x = seg.runs[std::size_t(r)].x0; x < seg.runs[std::size_t(r)].x1; ++x) side.insert(x >= 30);
     EXPECT_EQ(side.size(), 1u) << "segment " << s;
+  }
+}
+
+// The fast SLIC (run-based centre update and connectivity, SIMD assignment) against the plain
+// per-pixel reference: identical labels and runs on random and textured images of odd sizes.
+TEST(Slic, MatchesScalarReference) {
+  struct Case { int w, h, S, m, it, pct; unsigned seed; bool textured; };
+  const Case cases[] = {{37, 23, 5, 10, 3, 25, 1, false}, {101, 67, 8, 20, 4, 25, 2, true},
+                        {129, 41, 6, 40, 2, 50, 3, true}, {63, 95, 11, 5, 4, 10, 4, false},
+                        {7, 5, 3, 20, 1, 25, 5, true},    {211, 53, 8, 20, 4, 100, 6, true}};
+  for (const Case& c : cases) {
+    const ImageU8 img = c.textured ? test::texture_image(c.w, c.h, c.seed) : test::random_image(c.w, c.h, c.seed);
+    SegmentationParams p;
+    p.region_size = c.S;
+    p.compactness = c.m;
+    p.iterations = c.it;
+    p.min_segment_pct = c.pct;
+    const Segmentation fast = slic_segment(img, p);
+    const Segmentation ref = test::slic_segment_reference(img, p);
+    ASSERT_EQ(fast.count, ref.count) << c.w << "x" << c.h << " S=" << c.S;
+    EXPECT_EQ(fast.labels.data, ref.labels.data) << c.w << "x" << c.h << " S=" << c.S;
+    EXPECT_EQ(fast.run_begin, ref.run_begin);
+    EXPECT_EQ(fast.pixels, ref.pixels);
   }
 }
 

@@ -101,21 +101,36 @@ struct SegPixel {
 };
 
 // The hot loop: for n pixels and the kBlock disparities starting at val/grad + off, the sums of
-// l*r and |gl - gr| (n <= kFlushPixels). The accumulators are locals of fixed size, so the
-// compiler keeps them in registers across the whole pixel loop; per pixel the products are taken
-// in 16-bit lanes (both fit, see the header) and widened once for the add.
+// l*r and |gl - gr| (n <= kFlushPixels). The per-pixel terms are added in 16-bit lanes, so no lane
+// is widened per pixel (widening is a cross-lane shuffle on x86 and the bottleneck of the loop):
+//   l*r (<= 65025, exact in uint16) is split as 256*hi + lo, hi = p >> 8 <= 254, lo = p & 255;
+//   hi, lo and |gl - gr| (<= 1443) are summed in uint16 over groups of kGroup16 pixels
+//   (kGroup16 * 1443 < 2^16), and each group's sums are widened once into the int32 totals
+//   (sum l*r = 256 * sum hi + sum lo; n <= kFlushPixels keeps the totals < 2^31).
+constexpr int kGroup16 = 45;  // 45 * 1443 = 64935 < 65536 (and 45 * 255 for hi, lo)
+
 FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
 void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t* __restrict val,
                       const std::int16_t* __restrict grad, std::int32_t* __restrict slr, std::int32_t* __restrict sg) {
   std::int32_t a[kBlock] = {}, g[kBlock] = {};
-  for (int i = 0; i < n; ++i) {
-    const std::uint16_t* o = val + px[i].off;
-    const std::int16_t* og = grad + px[i].off;
-    const std::uint16_t l = px[i].l;
-    const auto gl = static_cast<std::int16_t>(px[i].gl);
+  for (int i0 = 0; i0 < n; i0 += kGroup16) {
+    const int i1 = std::min(n, i0 + kGroup16);
+    std::uint16_t hi[kBlock] = {}, lo[kBlock] = {}, g16[kBlock] = {};
+    for (int i = i0; i < i1; ++i) {
+      const std::uint16_t* o = val + px[i].off;
+      const std::int16_t* og = grad + px[i].off;
+      const std::uint16_t l = px[i].l;
+      const auto gl = static_cast<std::int16_t>(px[i].gl);
+      for (int j = 0; j < kBlock; ++j) {
+        const auto prod = static_cast<std::uint16_t>(l * o[j]);
+        hi[j] = static_cast<std::uint16_t>(hi[j] + (prod >> 8));
+        lo[j] = static_cast<std::uint16_t>(lo[j] + (prod & 0xFF));
+        g16[j] = static_cast<std::uint16_t>(g16[j] + static_cast<std::uint16_t>(std::abs(static_cast<std::int16_t>(gl - og[j]))));
+      }
+    }
     for (int j = 0; j < kBlock; ++j) {
-      a[j] += static_cast<std::uint16_t>(l * o[j]);
-      g[j] += static_cast<std::uint16_t>(std::abs(static_cast<std::int16_t>(gl - og[j])));
+      a[j] += (std::int32_t(hi[j]) << 8) + lo[j];
+      g[j] += g16[j];
     }
   }
   for (int j = 0; j < kBlock; ++j) {
@@ -149,6 +164,44 @@ inline std::uint32_t ncc_q16(std::int64_t num, std::int64_t varr, double varl) {
 // reciprocal in double (one division per segment instead of one per disparity).
 inline std::uint32_t igsad_q16(std::int64_t g, double inv_max_q16) {
   return static_cast<std::uint32_t>(kQ16One - static_cast<std::int64_t>(static_cast<double>(g) * inv_max_q16));
+}
+
+// eq. (1) and eq. (7) for all D of one segment whose sums fit int32 (n <= kFlushPixels, the case
+// of every SLIC segment in practice): the same double operations as ncc_q16/igsad_q16, written
+// branch-free so they vectorise. Every integer below is exact in double (n <= 2^15, sums < 2^31:
+// products < 2^46), so the results are bit-identical to the int64 path.
+FS_TARGET_CLONES
+void ncc_igsad_q16_i32(const std::int32_t* __restrict slr, const std::int32_t* __restrict sr,
+                       const std::int32_t* __restrict srr, const std::int32_t* __restrict sg, int D, double n,
+                       double sl, double varl, double inv_gmax, std::uint32_t* __restrict ncc,
+                       std::uint32_t* __restrict igsad) {
+  const double vl = varl > 0.0 ? varl : 0.0;  // varl <= 0 (flat segment): NCC = 0 for every d
+  for (int d = 0; d < D; ++d) {
+    const double r = sr[d];
+    const double num = n * slr[d] - sl * r;
+    const double varr = n * srr[d] - r * r;
+    const double den = std::sqrt(vl * varr);
+    const bool ok = (num > 0.0) & (varr > 0.0) & (vl > 0.0);
+    const double q0 = num / den;  // inf/NaN where !ok: computed for every d, then masked
+    const double q = ok ? q0 : 0.0;
+    const double v = std::min(q, 1.0);
+    ncc[d] = static_cast<std::uint32_t>(static_cast<std::int32_t>(v * kQ16One + 0.5));
+    igsad[d] = static_cast<std::uint32_t>(kQ16One - static_cast<std::int32_t>(static_cast<double>(sg[d]) * inv_gmax));
+  }
+}
+
+// FIS score at the nearest table node for every d (FisLut::lookup_nearest, written as one loop of
+// index arithmetic and table reads so it vectorises with gathers).
+FS_TARGET_CLONES
+void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, const std::uint32_t* __restrict b, int D,
+                      std::uint32_t* __restrict out) {
+  const std::uint32_t* __restrict table = fis.table().data();
+  const auto n1 = static_cast<std::uint32_t>(fis.size() - 1), size = static_cast<std::uint32_t>(fis.size());
+  for (int d = 0; d < D; ++d) {
+    const std::uint32_t ia = (std::min<std::uint32_t>(a[d], 1u << 16) * n1 + (1u << 15)) >> 16;
+    const std::uint32_t ib = (std::min<std::uint32_t>(b[d], 1u << 16) * n1 + (1u << 15)) >> 16;
+    out[d] = table[ia * size + ib];
+  }
 }
 
 // The K best disparities by (prescore desc, d asc), best first: one pass keeping a sorted list of
@@ -204,7 +257,7 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
   {
     (void)nt;
     const auto uD = static_cast<std::size_t>(D);
-    std::vector<std::int32_t> sr32(uD), srr32(uD);
+    std::vector<std::int32_t> sr32(uD), srr32(uD), slr32(uD + kBlock), sg32(uD + kBlock);
     std::vector<std::int64_t> slr(uD), sg(uD), sr(uD), srr(uD);
     std::int32_t blr[kBlock], bg[kBlock];
     std::vector<SegPixel> px;
@@ -219,8 +272,10 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
     for (int s = 0; s < seg.count; ++s) {
       const Run* r0 = seg.runs.data() + seg.run_begin[std::size_t(s)];
       const Run* r1 = seg.runs.data() + seg.run_begin[std::size_t(s) + 1];
-      std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
-      std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
+      if (seg.pixels[std::size_t(s)] > kFlushPixels) {  // int64 sums only where int32 could overflow
+        std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
+        std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
+      }
       std::fill(sr32.begin(), sr32.end(), 0); std::fill(srr32.begin(), srr32.end(), 0);
       std::fill(hx.begin(), hx.end(), 0);  // joint and hy are all-zero after each candidate
 
@@ -259,39 +314,48 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
           px.push_back({ro + base_of(x), grow[x], static_cast<std::uint8_t>(l), bx});
         }
       }
-      for (std::size_t i = 0; i < uD; ++i) { sr[i] += sr32[i]; srr[i] += srr32[i]; }
       const auto n = static_cast<std::int64_t>(px.size());
 
-      // sum l*r and sum |gl - gr|, kBlock disparities at a time, kFlushPixels pixels at a time.
-      for (int d0 = 0; d0 < D; d0 += kBlock) {
-        const int nb = std::min(kBlock, D - d0);
-        for (std::size_t i0 = 0; i0 < px.size(); i0 += kFlushPixels) {
-          const int cnt = static_cast<int>(std::min<std::size_t>(kFlushPixels, px.size() - i0));
-          accumulate_block(px.data() + i0, cnt, pr.val.data() + d0, pr.grad.data() + d0, blr, bg);
-          for (int j = 0; j < nb; ++j) {
-            slr[std::size_t(d0 + j)] += blr[j];
-            sg[std::size_t(d0 + j)] += bg[j];
-          }
-        }
-      }
-
-      // eq. (1) NCC and eq. (6)-(7) IGSAD.
+      // sum l*r and sum |gl - gr|, kBlock disparities at a time, kFlushPixels pixels at a time;
+      // then eq. (1) NCC and eq. (6)-(7) IGSAD.
       const std::size_t off = std::size_t(s) * uD;
       const auto varl = static_cast<double>(n * sll - sl * sl);
-      std::int64_t gmax = 0;
-      for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg[std::size_t(d)]);
-      const double inv_gmax = gmax > 0 ? static_cast<double>(kQ16One) / static_cast<double>(gmax) : 0.0;
-      for (int d = 0; d < D; ++d) {
-        const std::size_t i = std::size_t(d);
-        c.ncc[off + i] = ncc_q16(n * slr[i] - sl * sr[i], n * srr[i] - sr[i] * sr[i], varl);
-        c.igsad[off + i] = igsad_q16(sg[i], inv_gmax);
+      if (px.size() <= std::size_t(kFlushPixels)) {  // int32 sums (see ncc_igsad_q16_i32)
+        for (int d0 = 0; d0 < D; d0 += kBlock)
+          accumulate_block(px.data(), static_cast<int>(px.size()), pr.val.data() + d0, pr.grad.data() + d0,
+                           slr32.data() + d0, sg32.data() + d0);
+        std::int32_t gmax = 0;
+        for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg32[std::size_t(d)]);
+        const double inv_gmax = gmax > 0 ? static_cast<double>(kQ16One) / static_cast<double>(gmax) : 0.0;
+        ncc_igsad_q16_i32(slr32.data(), sr32.data(), srr32.data(), sg32.data(), D, static_cast<double>(n),
+                          static_cast<double>(sl), varl, inv_gmax, c.ncc.data() + off, c.igsad.data() + off);
+      } else {
+        for (std::size_t i = 0; i < uD; ++i) { sr[i] += sr32[i]; srr[i] += srr32[i]; }
+        for (int d0 = 0; d0 < D; d0 += kBlock) {
+          const int nb = std::min(kBlock, D - d0);
+          for (std::size_t i0 = 0; i0 < px.size(); i0 += kFlushPixels) {
+            const int cnt = static_cast<int>(std::min<std::size_t>(kFlushPixels, px.size() - i0));
+            accumulate_block(px.data() + i0, cnt, pr.val.data() + d0, pr.grad.data() + d0, blr, bg);
+            for (int j = 0; j < nb; ++j) {
+              slr[std::size_t(d0 + j)] += blr[j];
+              sg[std::size_t(d0 + j)] += bg[j];
+            }
+          }
+        }
+        std::int64_t gmax = 0;
+        for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg[std::size_t(d)]);
+        const double inv_gmax = gmax > 0 ? static_cast<double>(kQ16One) / static_cast<double>(gmax) : 0.0;
+        for (int d = 0; d < D; ++d) {
+          const std::size_t i = std::size_t(d);
+          c.ncc[off + i] = ncc_q16(n * slr[i] - sl * sr[i], n * srr[i] - sr[i] * sr[i], varl);
+          c.igsad[off + i] = igsad_q16(sg[i], inv_gmax);
+        }
       }
 
       // Candidates for NMI: the K best by FIS(NCC, IGSAD) read at the nearest table node (ranking
       // needs no interpolation); ties -> smaller d.
       if (K < D) {
-        for (int d = 0; d < D; ++d)
-          prescore[std::size_t(d)] = fis.lookup_nearest(c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)]);
+        prescore_nearest(fis, c.ncc.data() + off, c.igsad.data() + off, D, prescore.data());
         top_k(prescore.data(), D, K, best.data(), order.data());
       } else {
         std::iota(order.begin(), order.end(), 0);

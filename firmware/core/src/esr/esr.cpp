@@ -43,6 +43,7 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
       rl[x] = b[x] == b1[x] ? static_cast<std::int16_t>(std::min<int>(rl1[x] + 1, window)) : std::int16_t(1);
   }
   ImageI32 out(w, h, 0);
+  const bool small_table = T.back() + T.size() < (std::uint64_t(1) << 32);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
@@ -69,49 +70,99 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
     for (int x = 0; x < w; ++x) {
       if (x - r - 1 >= 0) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
       if (x + r < w) add_col(x + r, +1);
-      out.at(x, y) = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+      // eq. (14): detail::entropy_q16 with a 32-bit division when the table fits (w <= 33: T[w^2]
+      // < 2^32), the same integer quotient at about half the cost of the 64-bit one.
+      if (small_table) {
+        const auto n32 = static_cast<std::uint32_t>(n);
+        const auto tn = static_cast<std::uint32_t>(T[n]), st = static_cast<std::uint32_t>(sum_t);
+        out.at(x, y) = n32 == 0 || tn <= st ? 0 : static_cast<std::int32_t>((tn - st + n32 / 2) / n32);
+      } else {
+        out.at(x, y) = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+      }
     }
   }
   return out;
 }
 
 // Mean of the valid disparities (Q4) in the clipped w x w block, rounded to nearest; kInvalidDisp
-// when the block has no valid pixel. Integral images of sum and count (int64).
+// when the block has no valid pixel. Separable running sums: per output row, the column sums of
+// the block's rows (sum, count), then a window sliding along the row. int32 is exact: a block holds
+// at most w^2 <= 99^2 values <= 32767 (< 2^29).
 ImageI16 block_mean(const ImageI16& disp, int window) {
   const int w = disp.width, h = disp.height, r = window / 2;
-  std::vector<std::int64_t> S(std::size_t(w + 1) * std::size_t(h + 1), 0), N(S.size(), 0);
-  auto at = [&](std::vector<std::int64_t>& a, int x, int y) -> std::int64_t& { return a[std::size_t(y) * std::size_t(w + 1) + std::size_t(x)]; };
-  for (int y = 0; y < h; ++y) {
-    std::int64_t rs = 0, rn = 0;
-    for (int x = 0; x < w; ++x) {
-      const std::int16_t d = disp.at(x, y);
-      if (d != kInvalidDisp) { rs += d; ++rn; }
-      at(S, x + 1, y + 1) = at(S, x + 1, y) + rs;
-      at(N, x + 1, y + 1) = at(N, x + 1, y) + rn;
-    }
-  }
   ImageI16 out(w, h, kInvalidDisp);
-  for (int y = 0; y < h; ++y) {
-    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r) + 1;
-    for (int x = 0; x < w; ++x) {
-      const int x0 = std::max(0, x - r), x1 = std::min(w - 1, x + r) + 1;
-      const std::int64_t s = at(S, x1, y1) - at(S, x0, y1) - at(S, x1, y0) + at(S, x0, y0);
-      const std::int64_t n = at(N, x1, y1) - at(N, x0, y1) - at(N, x1, y0) + at(N, x0, y0);
-      if (n > 0) out.at(x, y) = static_cast<std::int16_t>((2 * s + n) / (2 * n));
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel
+#endif
+  {
+    std::vector<std::int32_t> cs(std::size_t(w), 0), cn(std::size_t(w), 0);
+    int have0 = 0, have1 = -1;  // rows [have0, have1] are in the column sums
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(static)
+#endif
+    for (int y = 0; y < h; ++y) {
+      const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
+      if (y0 > have1 || y1 < have0 || y0 < have0) {  // first row of this thread's chunk: rebuild
+        std::fill(cs.begin(), cs.end(), 0);
+        std::fill(cn.begin(), cn.end(), 0);
+        have0 = y0;
+        have1 = y0 - 1;
+      }
+      for (; have0 < y0; ++have0) {  // rows leaving the block
+        const std::int16_t* d = disp.row(have0);
+        for (int x = 0; x < w; ++x) {
+          const std::int32_t v = d[x], ok = v != kInvalidDisp;
+          cs[std::size_t(x)] -= ok ? v : 0;
+          cn[std::size_t(x)] -= ok;
+        }
+      }
+      for (; have1 < y1; ) {  // rows entering the block
+        const std::int16_t* d = disp.row(++have1);
+        for (int x = 0; x < w; ++x) {
+          const std::int32_t v = d[x], ok = v != kInvalidDisp;
+          cs[std::size_t(x)] += ok ? v : 0;
+          cn[std::size_t(x)] += ok;
+        }
+      }
+      std::int32_t s = 0, n = 0;
+      for (int x = 0; x <= std::min(w - 1, r - 1); ++x) { s += cs[std::size_t(x)]; n += cn[std::size_t(x)]; }
+      std::int16_t* o = out.row(y);
+      for (int x = 0; x < w; ++x) {
+        if (x + r < w) { s += cs[std::size_t(x + r)]; n += cn[std::size_t(x + r)]; }
+        if (x - r - 1 >= 0) { s -= cs[std::size_t(x - r - 1)]; n -= cn[std::size_t(x - r - 1)]; }
+        if (n > 0) o[x] = static_cast<std::int16_t>((2 * s + n) / (2 * n));
+      }
     }
   }
   return out;
 }
 
+namespace {
+
+// block_mean at one pixel (the same clipped block and rounding), for the few pixels ESR replaces.
+std::int16_t block_mean_at(const ImageI16& disp, int x, int y, int r) {
+  const int x0 = std::max(0, x - r), x1 = std::min(disp.width - 1, x + r);
+  const int y0 = std::max(0, y - r), y1 = std::min(disp.height - 1, y + r);
+  std::int32_t s = 0, n = 0;
+  for (int yy = y0; yy <= y1; ++yy) {
+    const std::int16_t* d = disp.row(yy);
+    for (int xx = x0; xx <= x1; ++xx)
+      if (d[xx] != kInvalidDisp) { s += d[xx]; ++n; }
+  }
+  return n > 0 ? static_cast<std::int16_t>((2 * s + n) / (2 * n)) : kInvalidDisp;
+}
+
+}  // namespace
+
 ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
                                       int max_disparity, ImageU8* replaced) {
-  const int w = disp_lr.width, h = disp_lr.height;
-  // Left and right block images are independent (0 = the thread count set by the matcher).
+  const int w = disp_lr.width, h = disp_lr.height, r = p.window / 2;
+  // Left and right block entropies are independent (0 = the thread count set by the matcher).
+  // The block means (block_mean) are taken only where a pixel is replaced.
   ImageI32 El, Er;
-  ImageI16 Ml, Mr;
   detail::run_pair(
-      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity); Ml = block_mean(disp_lr, p.window); },
-      [&] { Er = block_entropy(disp_right, p.window, max_disparity); Mr = block_mean(disp_right, p.window); });
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out = disp_lr;
   if (replaced) *replaced = ImageU8(w, h, 0);
@@ -126,7 +177,7 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
       if (xr < 0 || xr >= w) continue;
       const std::int64_t el = El.at(x, y), er = Er.at(xr, y);
       if (std::llabs(el - er) <= tau) continue;  // eq. (15), "otherwise"
-      const std::int16_t m = el < er ? Ml.at(x, y) : Mr.at(xr, y);
+      const std::int16_t m = el < er ? block_mean_at(disp_lr, x, y, r) : block_mean_at(disp_right, xr, y, r);
       if (m == kInvalidDisp) continue;
       out.at(x, y) = m;
       if (replaced) replaced->at(x, y) = 1;

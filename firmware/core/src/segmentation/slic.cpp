@@ -22,17 +22,24 @@ struct Center {
   std::int64_t x, y, i;
 };
 
-// One row of one centre's search window: keep the closer centre per pixel (branch-free, SIMD).
+// One centre's search window [x0, x1] x [y0, y1]: keep the closer centre per pixel (branch-free,
+// SIMD; one call per window so the clone dispatch and loop set-up are paid once per centre).
 FS_TARGET_CLONES
-void assign_row(const std::uint8_t* __restrict r, std::uint32_t* __restrict dr, std::int32_t* __restrict lab, int x0,
-                int x1, std::int32_t ci, std::int32_t cx, std::uint32_t dy2, std::uint32_t s2, std::uint32_t mm,
-                std::int32_t k) {
-  for (int x = x0; x <= x1; ++x) {
-    const std::int32_t di = r[x] - ci, dx = x - cx;
-    const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
-    const bool closer = d < dr[x];
-    dr[x] = closer ? d : dr[x];
-    lab[x] = closer ? k : lab[x];
+void assign_window(const ImageU8& img, std::uint32_t* __restrict dist, ImageI32& labels, int x0, int x1, int y0, int y1,
+                   std::int32_t ci, std::int32_t cx, std::int32_t cy, std::uint32_t s2, std::uint32_t mm, std::int32_t k) {
+  const int w = img.width;
+  for (int y = y0; y <= y1; ++y) {
+    const std::uint8_t* __restrict r = img.row(y);
+    std::uint32_t* __restrict dr = dist + std::size_t(y) * std::size_t(w);
+    std::int32_t* __restrict lab = labels.row(y);
+    const auto dy2 = static_cast<std::uint32_t>((y - cy) * (y - cy));
+    for (int x = x0; x <= x1; ++x) {
+      const std::int32_t di = r[x] - ci, dx = x - cx;
+      const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
+      const bool closer = d < dr[x];
+      dr[x] = closer ? d : dr[x];
+      lab[x] = closer ? k : lab[x];
+    }
   }
 }
 
@@ -108,25 +115,33 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
       const Center& c = centers[k];
       const int x0 = std::max<int>(0, int(c.x) - S), x1 = std::min<int>(w - 1, int(c.x) + S);
       const int y0 = std::max<int>(0, int(c.y) - S), y1 = std::min<int>(h - 1, int(c.y) + S);
-      for (int y = y0; y <= y1; ++y) {
-        const std::uint8_t* r = img.row(y);
-        std::int32_t* lab = labels.row(y);
-        std::uint32_t* dr = dist.data() + std::size_t(y) * std::size_t(w);
-        assign_row(r, dr, lab, x0, x1, static_cast<std::int32_t>(c.i), static_cast<std::int32_t>(c.x),
-                   static_cast<std::uint32_t>((y - c.y) * (y - c.y)), static_cast<std::uint32_t>(S2),
-                   static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
-      }
+      assign_window(img, dist.data(), labels, x0, x1, y0, y1, static_cast<std::int32_t>(c.i),
+                    static_cast<std::int32_t>(c.x), static_cast<std::int32_t>(c.y), static_cast<std::uint32_t>(S2),
+                    static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
     }
-    // Update centres (integer rounded means). Unreached pixels (-1) keep no centre.
+    // Update centres (integer rounded means). Unreached pixels (-1) keep no centre. Per row, a run
+    // of equal labels adds its position sums in closed form and its grey values in one tight loop
+    // (the same integer sums as pixel by pixel).
     std::fill(sx.begin(), sx.end(), 0); std::fill(sy.begin(), sy.end(), 0);
     std::fill(si.begin(), si.end(), 0); std::fill(cnt.begin(), cnt.end(), 0);
     for (int y = 0; y < h; ++y) {
       const std::int32_t* lab = labels.row(y);
       const std::uint8_t* r = img.row(y);
-      for (int x = 0; x < w; ++x) {
+      int x = 0;
+      while (x < w) {
         const std::int32_t k = lab[x];
-        if (k < 0) continue;
-        sx[std::size_t(k)] += x; sy[std::size_t(k)] += y; si[std::size_t(k)] += r[x]; ++cnt[std::size_t(k)];
+        int e = x + 1;
+        while (e < w && lab[e] == k) ++e;
+        if (k >= 0) {
+          const std::int64_t len = e - x;
+          std::int64_t grey = 0;
+          for (int j = x; j < e; ++j) grey += r[j];
+          sx[std::size_t(k)] += (std::int64_t(x) + e - 1) * len / 2;
+          sy[std::size_t(k)] += std::int64_t(y) * len;
+          si[std::size_t(k)] += grey;
+          cnt[std::size_t(k)] += len;
+        }
+        x = e;
       }
     }
     for (std::size_t k = 0; k < centers.size(); ++k) {
@@ -136,44 +151,69 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
     }
   }
 
-  // Connectivity enforcement (4-connected flood fill in scan order). A piece smaller than the
-  // minimum joins the segment of its neighbour found first (above or left of its first pixel).
+  // Connectivity enforcement. The pieces are the 4-connected components of the SLIC labels, visited
+  // in scan order of their first pixel; a piece smaller than the minimum joins the segment of the
+  // pixel left of its first pixel (above it in column 0) — the result of a scan-order flood fill
+  // (tests/cpp/core/slic_reference.hpp), computed on runs: union-find over the runs of equal label
+  // that overlap between consecutive rows, the root of a piece being its first run.
   const std::int64_t min_size = std::max<std::int64_t>(1, S2 * p.min_segment_pct / 100);
-  ImageI32 out(w, h, -1);
-  std::vector<std::int32_t> stack;
-  std::vector<std::int32_t> piece;
-  std::int32_t next = 0;
-  const int dx4[4] = {-1, 0, 1, 0}, dy4[4] = {0, -1, 0, 1};
+  struct LRun {
+    std::int32_t x0, x1, label;
+  };
+  std::vector<LRun> runs;
+  std::vector<std::int32_t> row_begin(std::size_t(h) + 1, 0);
   for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      if (out.at(x, y) >= 0) continue;
-      const std::int32_t src = labels.at(x, y);
-      std::int32_t adjacent = -1;
-      for (int k = 0; k < 4; ++k) {
-        const int nx = x + dx4[k], ny = y + dy4[k];
-        if (nx >= 0 && ny >= 0 && nx < w && ny < h && out.at(nx, ny) >= 0) { adjacent = out.at(nx, ny); break; }
+    const std::int32_t* lab = labels.row(y);
+    int x = 0;
+    while (x < w) {
+      int e = x + 1;
+      while (e < w && lab[e] == lab[x]) ++e;
+      runs.push_back({x, e, lab[x]});
+      x = e;
+    }
+    row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
+  }
+  std::vector<std::int32_t> parent(runs.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<std::int32_t>(i);
+  auto find = [&](std::int32_t a) {
+    while (parent[std::size_t(a)] != a) {
+      parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
+      a = parent[std::size_t(a)];
+    }
+    return a;
+  };
+  for (int y = 1; y < h; ++y) {
+    std::int32_t i = row_begin[std::size_t(y) - 1];
+    const std::int32_t i_end = row_begin[std::size_t(y)];
+    for (std::int32_t j = row_begin[std::size_t(y)]; j < row_begin[std::size_t(y) + 1]; ++j) {
+      const LRun& b = runs[std::size_t(j)];
+      while (i < i_end && runs[std::size_t(i)].x1 <= b.x0) ++i;  // runs above ending before b
+      for (std::int32_t k = i; k < i_end && runs[std::size_t(k)].x0 < b.x1; ++k) {
+        if (runs[std::size_t(k)].label != b.label) continue;
+        const std::int32_t ra = find(k), rb = find(j);
+        if (ra != rb) parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);  // root = first run
       }
-      piece.clear();
-      stack.assign(1, y * w + x);
-      out.at(x, y) = next;
-      while (!stack.empty()) {
-        const std::int32_t idx = stack.back();
-        stack.pop_back();
-        piece.push_back(idx);
-        const int px = idx % w, py = idx / w;
-        for (int k = 0; k < 4; ++k) {
-          const int nx = px + dx4[k], ny = py + dy4[k];
-          if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
-          if (out.at(nx, ny) >= 0 || labels.at(nx, ny) != src) continue;
-          out.at(nx, ny) = next;
-          stack.push_back(ny * w + nx);
-        }
+    }
+  }
+  std::vector<std::int64_t> size(runs.size(), 0);
+  for (std::size_t j = 0; j < runs.size(); ++j) {
+    parent[j] = find(static_cast<std::int32_t>(j));
+    size[std::size_t(parent[j])] += runs[j].x1 - runs[j].x0;
+  }
+  ImageI32 out(w, h, -1);
+  std::vector<std::int32_t> final_label(runs.size(), -1);  // per root run
+  std::int32_t next = 0;
+  for (int y = 0; y < h; ++y) {
+    std::int32_t* o = out.row(y);
+    for (std::int32_t j = row_begin[std::size_t(y)]; j < row_begin[std::size_t(y) + 1]; ++j) {
+      const LRun& b = runs[std::size_t(j)];
+      const std::int32_t root = parent[std::size_t(j)];
+      std::int32_t& fl = final_label[std::size_t(root)];
+      if (root == j) {  // first pixel of the piece: (b.x0, y)
+        const std::int32_t adjacent = b.x0 > 0 ? o[b.x0 - 1] : (y > 0 ? out.at(0, y - 1) : -1);
+        fl = (size[std::size_t(j)] < min_size && adjacent >= 0) ? adjacent : next++;
       }
-      if (static_cast<std::int64_t>(piece.size()) < min_size && adjacent >= 0) {
-        for (std::int32_t idx : piece) out.data[std::size_t(idx)] = adjacent;
-      } else {
-        ++next;
-      }
+      std::fill(o + b.x0, o + b.x1, fl);
     }
   }
   return segmentation_from_labels(std::move(out));

@@ -1,0 +1,135 @@
+// Google Benchmark micro-benchmarks of the matcher stages on a KITTI-sized synthetic pair
+// (1242 x 375, D = 160): the per-stage figures behind `fuzzystereo bench`, without OpenCV or the
+// datasets. Run: build/default/tests/bench/fs_core_bench [--benchmark_filter=Slic]
+// Single-threaded (runtime.threads = 1) so the numbers are per core.
+#include <benchmark/benchmark.h>
+
+#include <random>
+
+#if defined(FS_HAVE_OPENMP)
+#include <omp.h>
+#endif
+
+#include "config.hpp"
+#include "fuzzystereo/fis.hpp"
+#include "fuzzystereo/matcher.hpp"
+#include "fuzzystereo/stages.hpp"
+
+namespace {
+
+constexpr int kW = 1242, kH = 375, kD = 160;
+
+// Smooth random texture (two box blurs of uniform noise), right = left shifted by a disparity
+// that grows towards the bottom rows (a road-like slant) plus a near block.
+struct Pair {
+  fs::ImageU8 left{kW, kH}, right{kW, kH};
+  Pair() {
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<int> u(0, 255);
+    const int WW = kW + kD;
+    std::vector<int> a(std::size_t(WW) * kH), b(a.size());
+    for (auto& v : a) v = u(rng);
+    for (int pass = 0; pass < 2; ++pass) {
+      for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < WW; ++x) {
+          int s = 0, n = 0;
+          for (int k = -1; k <= 1; ++k)
+            for (int j = -1; j <= 1; ++j) {
+              const int yy = std::clamp(y + k, 0, kH - 1), xx = std::clamp(x + j, 0, WW - 1);
+              s += a[std::size_t(yy) * WW + xx];
+              ++n;
+            }
+          b[std::size_t(y) * WW + x] = s / n;
+        }
+      a.swap(b);
+    }
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        int d = 5 + (y * 80) / kH;
+        if (x > 500 && x < 700 && y > 150 && y < 300) d = 110;
+        left.at(x, y) = static_cast<std::uint8_t>(a[std::size_t(y) * WW + x + kD]);
+        right.at(x, y) = static_cast<std::uint8_t>(a[std::size_t(y) * WW + std::max(0, x + kD - d)]);
+      }
+  }
+};
+
+const Pair& pair() {
+#if defined(FS_HAVE_OPENMP)
+  omp_set_num_threads(1);  // stage functions called directly open their own parallel regions
+#endif
+  static const Pair p;
+  return p;
+}
+
+fs::MatcherParams params() {
+  fs::MatcherParams p;  // library defaults, D = 160, one thread
+  p.cost.max_disparity = kD;
+  p.runtime.threads = 1;
+  return p;
+}
+
+const fs::FisLut& lut() {
+  static const auto l = fs::FisLut::cached(fs::load_fis_definition(""), params().fis.lut_size);
+  return *l;
+}
+
+void BM_Gradient(benchmark::State& st) {
+  for (auto _ : st) benchmark::DoNotOptimize(fs::gradient_magnitude(pair().left));
+}
+BENCHMARK(BM_Gradient)->Unit(benchmark::kMillisecond);
+
+void BM_Slic(benchmark::State& st) {
+  const auto p = params();
+  for (auto _ : st) benchmark::DoNotOptimize(fs::slic_segment(pair().left, p.seg));
+}
+BENCHMARK(BM_Slic)->Unit(benchmark::kMillisecond);
+
+void BM_CostLeft(benchmark::State& st) {
+  const auto p = params();
+  const auto gl = fs::gradient_magnitude(pair().left), gr = fs::gradient_magnitude(pair().right);
+  const auto seg = fs::slic_segment(pair().left, p.seg);
+  auto scratch = fs::make_cost_scratch();
+  for (auto _ : st)
+    benchmark::DoNotOptimize(
+        fs::compute_segment_costs(pair().left, pair().right, gl, gr, seg, +1, p.cost, lut(), 1, scratch.get()));
+}
+BENCHMARK(BM_CostLeft)->Unit(benchmark::kMillisecond);
+
+void BM_WtaLeft(benchmark::State& st) {
+  const auto p = params();
+  const auto gl = fs::gradient_magnitude(pair().left), gr = fs::gradient_magnitude(pair().right);
+  const auto seg = fs::slic_segment(pair().left, p.seg);
+  const auto c = fs::compute_segment_costs(pair().left, pair().right, gl, gr, seg, +1, p.cost, lut(), 1);
+  for (auto _ : st) {
+    auto dec = fs::fis_winner_take_all(c, lut(), p.cost);
+    benchmark::DoNotOptimize(fs::paint_segments(seg, dec.disparity_q4));
+  }
+}
+BENCHMARK(BM_WtaLeft)->Unit(benchmark::kMillisecond);
+
+void BM_Esr(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(fs::entropy_selective_refinement(r.disp_lr, r.disp_right_wta, p.esr, kD, nullptr));
+}
+BENCHMARK(BM_Esr)->Unit(benchmark::kMillisecond);
+
+void BM_BlockEntropy(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(r.disp_lr, p.esr.window, kD));
+}
+BENCHMARK(BM_BlockEntropy)->Unit(benchmark::kMillisecond);
+
+void BM_Matcher(benchmark::State& st) {
+  const fs::Matcher m(params(), fs::load_fis_definition(""));
+  for (auto _ : st) benchmark::DoNotOptimize(m.match(pair().left, pair().right));
+}
+BENCHMARK(BM_Matcher)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
