@@ -54,12 +54,22 @@ inline void use_threads(int requested) {
 template <class F, class G>
 void run_pair(int threads, F&& first, G&& second) {
 #if defined(FS_HAVE_OPENMP)
-#pragma omp parallel sections num_threads(resolve_threads(threads) >= 2 ? 2 : 1)
+  // Each job's own parallel regions get half of the threads, so the two jobs together do not
+  // oversubscribe the cores (nested regions would otherwise each take all of them).
+  const int nt = resolve_threads(threads);
+  const int inner = nt >= 2 ? nt / 2 : 1;
+#pragma omp parallel sections num_threads(nt >= 2 ? 2 : 1)
   {
 #pragma omp section
-    first();
+    {
+      omp_set_num_threads(inner);
+      first();
+    }
 #pragma omp section
-    second();
+    {
+      omp_set_num_threads(inner);
+      second();
+    }
   }
 #else
   (void)threads;

@@ -65,8 +65,8 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   MatchResult r;
   StageClock clock(r.timings);
 
-  const ImageU16 grad_l = gradient_magnitude(left);                                     // eq. (5)
-  const ImageU16 grad_r = gradient_magnitude(right);
+  ImageU16 grad_l, grad_r;                                                              // eq. (5)
+  detail::run_pair(threads, [&] { grad_l = gradient_magnitude(left); }, [&] { grad_r = gradient_magnitude(right); });
   clock.lap(Stage::Gradient);
 
   detail::run_pair(
@@ -86,10 +86,16 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
       [&] { cost_r = compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads, scratch_[1].get()); });
   clock.lap(Stage::Cost);
 
-  r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);                              // eq. (10)-(12), WTA
-  r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
-  r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity_q4);
-  r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity_q4);
+  detail::run_pair(                                                                     // eq. (10)-(12), WTA
+      threads,
+      [&] {
+        r.dec_left = fis_winner_take_all(cost_l, *lut_, p.cost);
+        r.disp_left_wta = paint_segments(r.seg_left, r.dec_left.disparity_q4);
+      },
+      [&] {
+        r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
+        r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity_q4);
+      });
   clock.lap(Stage::Wta);
 
   r.disp_lr = left_right_check(r.disp_left_wta, r.disp_right_wta, p.lr, &r.lr_mask);  // eq. (13)
