@@ -1,3 +1,4 @@
+#include <random>
 // Data costs (eq. 1-9): the fast kernel (padded partner rows, prefix sums, SIMD loop over d,
 // incremental entropies) against a plain per-(segment, d) scalar reference.
 #include <algorithm>
@@ -133,6 +134,35 @@ TEST(SegmentCosts, BitExactAgainstScalarReference) {
       expect_same(compute_segment_costs(ref, oth, rg, og, seg, dir, p, test_lut(), threads),
                   reference_costs(ref, oth, rg, og, seg, dir, p, test_lut()));
   }
+}
+
+// Segments larger than the int32 fast path (kFlushPixels = 32768 pixels: the int64 path with flushes)
+// next to small ones whose pixel counts straddle the 45-pixel groups of the 16-bit kernel sums,
+// on a bright high-contrast pair (largest products and gradient differences).
+TEST(SegmentCosts, OversizedSegmentsUseTheExactWidePath) {
+  const int w = 211, h = 181;  // 38191 pixels
+  ImageU8 l(w, h), r(w, h);
+  std::mt19937 rng(5u);
+  std::uniform_int_distribution<int> u(0, 1);
+  for (auto& v : l.data) v = static_cast<std::uint8_t>(u(rng) ? 255 : 200);
+  for (auto& v : r.data) v = static_cast<std::uint8_t>(u(rng) ? 255 : 0);
+  const ImageU16 gl = gradient_magnitude(l), gr = gradient_magnitude(r);
+  ImageI32 labels(w, h, 0);  // segment 0: everything except a few small blocks
+  int next = 1;
+  for (int by = 0; by + 9 <= h; by += 40)
+    for (int bx = 0; bx + 9 <= w; bx += 50, ++next)
+      for (int y = by; y < by + 1 + next % 9; ++y)
+        for (int x = bx; x < bx + 9; ++x) labels.at(x, y) = next;
+  const Segmentation seg = segmentation_from_labels(labels);
+  ASSERT_GT(seg.pixels[0], 32768);
+  CostParams p;
+  p.max_disparity = 37;
+  p.nmi_candidates = 5;
+  for (int dir : {+1, -1})
+    expect_same(compute_segment_costs(dir > 0 ? l : r, dir > 0 ? r : l, dir > 0 ? gl : gr, dir > 0 ? gr : gl, seg, dir,
+                                      p, test_lut(), 1),
+                reference_costs(dir > 0 ? l : r, dir > 0 ? r : l, dir > 0 ? gl : gr, dir > 0 ? gr : gl, seg, dir, p,
+                                test_lut()));
 }
 
 TEST(SegmentCosts, InjectedShiftMovesThePartner) {
