@@ -75,6 +75,8 @@ struct DetectParams {
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
+  int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
+                                      // a gap up to this wide (0 = off)
   double split_min_rel = 0.12;     // split a component whose disparity histogram has two modes this far apart
                                    // (share of the larger lower median; 0 = off)
   double split_max_valley = 0.1;   // ... when at most this share of its pixels lies between the modes
