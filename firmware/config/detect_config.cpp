@@ -52,6 +52,11 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.cc_max_rel_step = v.num("detect.cc_max_rel_step");
   p.cc_min_step_px = v.num("detect.cc_min_step_px");
   p.min_area_px = v.integer("detect.min_area_px");
+  p.merge_occluded_max_gap_px = v.integer("detect.merge_occluded_max_gap_px");
+  p.split_min_rel = v.num("detect.split_min_rel");
+  p.split_max_valley = v.num("detect.split_max_valley");
+  p.split_min_px = v.integer("detect.split_min_px");
+  p.split_rounds = v.integer("detect.split_rounds");
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");

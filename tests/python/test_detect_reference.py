@@ -127,3 +127,38 @@ def test_relative_step_separates_far_neighbours():
     assert n == 2 and lab[3, 9] != lab[3, 10]
     disp[:, 10:] = 6.4375
     assert refdet.components(mask, disp, 1.0, 0.03, 0.25)[1] == 1
+
+
+def test_bimodal_split_separates_ramp_joined_depths():
+    # Two surfaces at 20 px and 14 px joined by a 2-column ramp: one component, split in two; a
+    # slanted surface over the same range stays whole (flat histogram, valley ~25 %).
+    d = np.full((60, 120), np.nan)
+    mask = np.zeros((60, 120), np.uint8)
+    mask[10:50, 10:110] = 1
+    xs = np.arange(120)
+    row = np.where(xs < 59, 20.0, np.where(xs == 59, 18.1, np.where(xs == 60, 16.25, 14.0)))
+    d[10:50] = row
+    comp, n = refdet.components(mask, d, 4.0)
+    assert n == 1
+    s, ns = refdet.split_bimodal(comp, n, d, 100, 0.12, 0.1, 2)
+    assert ns == 2 and s[20, 20] != s[20, 100] and s[20, 20] == s[49, 58]
+    assert refdet.split_bimodal(comp, n, d, 100, 0.0, 0.1, 2)[1] == 1  # off
+    d[10:50, 10:110] = 20.0 - (np.arange(100) * 6.0 / 99)
+    comp, n = refdet.components(mask, d, 4.0)
+    assert refdet.split_bimodal(comp, n, d, 100, 0.12, 0.1, 2)[1] == 1
+
+
+def test_occluded_obstacle_merges_across_nearer_one():
+    comp = np.zeros((80, 200), np.int32)
+    d = np.full((80, 200), np.nan)
+    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 20, 59, 1, 20.0), (40, 89, 5, 75, 2, 40.0), (90, 119, 20, 59, 3, 20.1)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = disp
+    roots = refdet.merge_fragments(comp, d, 3, 8, 0.1)
+    assert len(set(roots[1:].tolist())) == 3
+    r = refdet.merge_occluded(comp, d, 3, roots, 8, 0.1, 200, 10)
+    assert r[1] == r[3] != r[2]
+    assert len(set(refdet.merge_occluded(comp, d, 3, roots, 8, 0.1, 40, 10)[1:].tolist())) == 3  # gap 50 > 40
+    comp2 = comp.copy()
+    comp2[20:30, 90:120] = 0  # right piece starts 10 rows lower: another obstacle
+    assert len(set(refdet.merge_occluded(comp2, d, 3, roots, 8, 0.1, 200, 10)[1:].tolist())) == 3

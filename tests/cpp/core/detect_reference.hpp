@@ -225,4 +225,81 @@ inline ImageI32 components(const ImageU8& m, const ImageI16& disp, int step, int
   return lab;
 }
 
+// Bimodal split, the straightforward way: per component, sort its Q4 values; for every threshold t
+// between the smallest and the largest value, the Otsu term (s0*n1 - s1*n0)^2 / (n0*n1) from
+// direct sums (same double expression as the firmware, so the same ties); the lower medians from
+// the sorted values; the valley by counting. Then a flood fill over (label, side).
+inline int bimodal_threshold(std::vector<int> v, int min_px, double min_rel, double max_valley) {
+  std::sort(v.begin(), v.end());
+  const std::int64_t n = std::int64_t(v.size());
+  if (n < 2 * std::int64_t(min_px) || v.empty() || v.front() == v.back()) return -1;
+  int best_t = -1;
+  double best = -1.0;
+  for (int t = v.front() + 1; t <= v.back(); ++t) {
+    std::int64_t n0 = 0, s0 = 0, s1 = 0;
+    for (int q : v) (q < t ? (++n0, s0 += q) : (s1 += q));
+    const std::int64_t n1 = n - n0;
+    if (n0 < min_px || n1 < min_px) continue;
+    const double diff = double(s0 * n1 - s1 * n0);
+    const double crit = diff * diff / double(n0 * n1);
+    if (crit > best) best = crit, best_t = t;
+  }
+  if (best_t < 0) return -1;
+  const auto cut = std::lower_bound(v.begin(), v.end(), best_t);
+  const std::int64_t c0 = cut - v.begin(), c1 = n - c0;
+  const int m0 = v[std::size_t((c0 - 1) / 2)], m1 = v[std::size_t(c0 + (c1 - 1) / 2)];
+  if (double(m1 - m0) < min_rel * double(m1)) return -1;
+  const int g = (m1 - m0) / 4;
+  std::int64_t valley = 0;
+  for (int q : v) valley += q >= m0 + g && q <= m1 - g;
+  if (double(valley) > max_valley * double(n)) return -1;
+  return best_t;
+}
+
+inline ImageI32 split_bimodal(const ImageI32& comp, int count, const ImageI16& disp, int min_px, double min_rel,
+                              double max_valley, int rounds, int* out_count) {
+  ImageI32 lab = comp;
+  int n = count;
+  for (int r = 0; r < rounds && min_rel > 0; ++r) {
+    std::vector<std::vector<int>> vals(std::size_t(n) + 1);
+    for (std::size_t i = 0; i < lab.size(); ++i)
+      if (lab.data[i]) vals[std::size_t(lab.data[i])].push_back(disp.data[i]);
+    std::vector<int> thr(std::size_t(n) + 1, -1);
+    bool any = false;
+    for (int c = 1; c <= n; ++c) {
+      thr[std::size_t(c)] = bimodal_threshold(vals[std::size_t(c)], min_px, min_rel, max_valley);
+      any = any || thr[std::size_t(c)] >= 0;
+    }
+    if (!any) break;
+    auto key = [&](int x, int y) {
+      const int c = lab.at(x, y), t = c ? thr[std::size_t(c)] : -1;
+      return c == 0 ? 0 : 2 * c + (t >= 0 && disp.at(x, y) >= t);
+    };
+    ImageI32 out(lab.width, lab.height, 0);
+    int m = 0;
+    for (int y = 0; y < lab.height; ++y)
+      for (int x = 0; x < lab.width; ++x) {
+        if (!lab.at(x, y) || out.at(x, y)) continue;
+        const int k = key(x, y);
+        out.at(x, y) = ++m;
+        std::deque<std::pair<int, int>> q{{x, y}};
+        while (!q.empty()) {
+          auto [cx, cy] = q.front();
+          q.pop_front();
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int nx = cx + dx, ny = cy + dy;
+              if (nx < 0 || ny < 0 || nx >= lab.width || ny >= lab.height || out.at(nx, ny) || key(nx, ny) != k) continue;
+              out.at(nx, ny) = m;
+              q.push_back({nx, ny});
+            }
+        }
+      }
+    lab = std::move(out);
+    n = m;
+  }
+  *out_count = n;
+  return lab;
+}
+
 }  // namespace fs::ref

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <tuple>
 
 #include "detect_reference.hpp"
 #include "detect_scene.hpp"
@@ -245,6 +246,53 @@ TEST(DetectStages, ComponentsMatchFloodFill) {
       EXPECT_EQ(f.data, r.data) << w << "x" << h << " rel " << rel;
     }
   }
+}
+
+TEST(DetectStages, BimodalSplitMatchesReference) {
+  // Random components of blobs at two or three depths with noise; the fast split against the
+  // sorted-values reference, bit-exactly (labels and count), for several parameter sets.
+  std::mt19937 rng(23);
+  int split_seen = 0;
+  for (int it = 0; it < 25; ++it) {
+    const int w = 20 + int(rng() % 60), h = 10 + int(rng() % 30);
+    ImageU8 m(w, h, 0);
+    ImageI16 d(w, h, kInvalidDisp);
+    const int depths[3] = {100 + int(rng() % 200), 100 + int(rng() % 200), 100 + int(rng() % 200)};
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        if (rng() % 8 == 0) continue;
+        m.at(x, y) = 1;
+        const int band = (x * 3) / w;  // three vertical bands, touching
+        d.at(x, y) = std::int16_t(depths[band] + int(rng() % 9) - 4);
+      }
+    int n = 0;
+    const ImageI32 comp = detect::connected_components(m, d, 4096, &n);  // everything joins
+    for (auto [rel, valley, min_px, rounds] : {std::tuple{0.12, 0.1, 10, 2}, std::tuple{0.05, 0.3, 30, 1},
+                                               std::tuple{0.3, 0.05, 5, 3}}) {
+      int nf = 0, nr = 0;
+      const ImageI32 f = detect::split_bimodal_components(comp, n, d, min_px, rel, valley, rounds, &nf);
+      const ImageI32 r = ref::split_bimodal(comp, n, d, min_px, rel, valley, rounds, &nr);
+      EXPECT_EQ(nf, nr) << it;
+      EXPECT_EQ(f.data, r.data) << w << "x" << h << " it " << it;
+      split_seen += nf > n;
+    }
+  }
+  EXPECT_GT(split_seen, 10);  // the cases exercise splitting, not only "unchanged"
+}
+
+TEST(DetectStages, BimodalThresholdRules) {
+  // Two modes at 160 and 200 Q4 (20 %), 300 pixels each: split at Otsu's threshold between them.
+  std::vector<std::int32_t> h(61, 0);
+  h[0] = 300, h[40] = 300;  // lo = 160
+  const int t = detect::bimodal_threshold_q4(h, 160, 100, 0.12, 0.1);
+  EXPECT_GT(t, 160);
+  EXPECT_LE(t, 200);
+  EXPECT_EQ(detect::bimodal_threshold_q4(h, 160, 100, 0.25, 0.1), -1);  // modes closer than 25 %
+  EXPECT_EQ(detect::bimodal_threshold_q4(h, 160, 301, 0.12, 0.1), -1);  // a side below min_px
+  // A flat histogram (a slanted surface): the valley holds ~25 % > 10 %, no split.
+  std::vector<std::int32_t> flat(61, 10);
+  EXPECT_EQ(detect::bimodal_threshold_q4(flat, 160, 100, 0.12, 0.1), -1);
+  EXPECT_GE(detect::bimodal_threshold_q4(flat, 160, 100, 0.12, 0.3), 0);  // allowed with a 30 % valley
 }
 
 }  // namespace

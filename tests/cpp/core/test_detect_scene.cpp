@@ -192,6 +192,11 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_DOUBLE_EQ(p.min_area_m2, d.min_area_m2);
   EXPECT_DOUBLE_EQ(p.road_tolerance_rel, d.road_tolerance_rel);
   EXPECT_EQ(p.road_fill_invalid_px, d.road_fill_invalid_px);
+  EXPECT_DOUBLE_EQ(p.split_min_rel, d.split_min_rel);
+  EXPECT_DOUBLE_EQ(p.split_max_valley, d.split_max_valley);
+  EXPECT_EQ(p.split_min_px, d.split_min_px);
+  EXPECT_EQ(p.split_rounds, d.split_rounds);
+  EXPECT_EQ(p.merge_occluded_max_gap_px, d.merge_occluded_max_gap_px);
   EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
   EXPECT_DOUBLE_EQ(p.far_m, d.far_m);
   for (std::size_t i = 0; i < 3; ++i) {
@@ -285,6 +290,77 @@ TEST(DetectScene, PhysicalAreaDropsSmallSurfacesAtTheirDepth) {
   EXPECT_EQ(detect::measure_obstacles(comp, 2, disp, calib, p, nullptr).size(), 2u);
   p.min_area_m2 = 0.0;  // off
   EXPECT_EQ(detect::measure_obstacles(comp, 2, disp, calib, p, nullptr).size(), 2u);
+}
+
+TEST(DetectScene, OccludedObstacleMergesAcrossNearerOne) {
+  // One surface at d = 20 px seen left and right of a nearer one at d = 40 px: the two sides share
+  // top and bottom rows and the gap is covered by the nearer box -> one obstacle. A far piece with
+  // another top row, or an open gap, stays apart.
+  ImageI32 comp(200, 80, 0);
+  ImageI16 disp(200, 80, kInvalidDisp);
+  auto fill = [&](int x0, int x1, int y0, int y1, int label, int q4) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) comp.at(x, y) = label, disp.at(x, y) = std::int16_t(q4);
+  };
+  fill(10, 39, 20, 59, 1, 320);    // left side of the far surface
+  fill(40, 89, 5, 75, 2, 640);     // nearer obstacle in front
+  fill(90, 119, 20, 59, 3, 322);   // right side of the far surface
+  const StereoCalib calib{200.0, 100.0, 40.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.merge_gap_px = 8;
+  p.merge_occluded_max_gap_px = 200;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 3, disp, calib, p, &labels);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[1].x0, 10);  // the far one, both sides
+  EXPECT_EQ(o[1].x1, 119);
+  EXPECT_EQ(o[1].pixel_count, 2 * 30 * 40);
+  EXPECT_EQ(labels.at(15, 30), labels.at(100, 30));
+  p.merge_occluded_max_gap_px = 0;  // off: three obstacles
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+  p.merge_occluded_max_gap_px = 40;  // the 50-px gap is wider than allowed
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+  p.merge_occluded_max_gap_px = 200;
+  ImageI32 comp2 = comp;
+  for (int y = 20; y < 30; ++y)
+    for (int x = 90; x <= 119; ++x) comp2.at(x, y) = 0;  // right piece now starts 10 rows lower
+  EXPECT_EQ(detect::measure_obstacles(comp2, 3, disp, calib, p, nullptr).size(), 3u);
+  ImageI32 comp3 = comp;
+  for (int y = 5; y <= 75; ++y)
+    for (int x = 40; x <= 59; ++x) comp3.at(x, y) = 0;  // nearer box covers only 60..89: 20 columns open
+  EXPECT_EQ(detect::measure_obstacles(comp3, 3, disp, calib, p, nullptr).size(), 3u);
+}
+
+TEST(DetectScene, TwoDepthsJoinedByARampAreSplit) {
+  // Two obstacles at d = 20 px and d = 14 px (30 %) touching in the image, joined into one
+  // component by a 2-column ramp (as the matcher smooths a depth edge): the split separates them.
+  ImageU8 m(120, 60, 0);
+  ImageI16 d(120, 60, kInvalidDisp);
+  for (int y = 10; y < 50; ++y)
+    for (int x = 10; x < 110; ++x) {
+      m.at(x, y) = 1;
+      d.at(x, y) = std::int16_t(x < 59 ? 320 : x == 59 ? 290 : x == 60 ? 260 : 224);
+    }
+  int n = 0;
+  const ImageI32 comp = detect::connected_components(m, d, 64, &n);  // ramp steps of 30-36 Q4 join
+  ASSERT_EQ(n, 1);
+  int ns = 0;
+  const ImageI32 s = detect::split_bimodal_components(comp, n, d, 100, 0.12, 0.1, 2, &ns);
+  ASSERT_EQ(ns, 2);
+  EXPECT_NE(s.at(20, 20), s.at(100, 20));
+  EXPECT_EQ(s.at(20, 20), s.at(58, 49));
+  EXPECT_EQ(detect::split_bimodal_components(comp, n, d, 100, 0.0, 0.1, 2, &ns).data, comp.data);  // off
+  EXPECT_EQ(ns, 1);
+  // One slanted surface (d from 14 to 20 px linearly over 100 columns): not split.
+  for (int y = 10; y < 50; ++y)
+    for (int x = 10; x < 110; ++x) d.at(x, y) = std::int16_t(320 - (x - 10) * 96 / 99);
+  const ImageI32 c2 = detect::connected_components(m, d, 64, &n);
+  ASSERT_EQ(n, 1);
+  detect::split_bimodal_components(c2, n, d, 100, 0.12, 0.1, 2, &ns);
+  EXPECT_EQ(ns, 1);
 }
 
 }  // namespace

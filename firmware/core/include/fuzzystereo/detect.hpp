@@ -75,6 +75,13 @@ struct DetectParams {
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
+  int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
+                                      // a gap up to this wide (0 = off)
+  double split_min_rel = 0.12;     // split a component whose disparity histogram has two modes this far apart
+                                   // (share of the larger lower median; 0 = off)
+  double split_max_valley = 0.1;   // ... when at most this share of its pixels lies between the modes
+  int split_min_px = 100;          // ... and each side has at least this many pixels
+  int split_rounds = 2;            // splitting passes (a component over three depths needs two)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -210,6 +217,17 @@ UDispResult u_disparity_filter(const ImageI16& disp, const ImageU8& labels, int 
 // rel_step > 0: a step must also be <= max(min_step_q4, rel_step * the larger of the two disparities).
 ImageI32 connected_components(const ImageU8& mask, const ImageI16& disp, int max_step_q4, int* count,
                               double rel_step = 0.0, int min_step_q4 = 0);
+
+// Splitting bimodal components (docs/detection.md "(e)"). bimodal_threshold_q4: hist[i] counts Q4
+// value lo + i; returns Otsu's threshold t (class 0: q4 < t) when both classes have >= min_px pixels,
+// their lower medians m0 < m1 satisfy m1 - m0 >= min_rel * m1 and [m0 + (m1-m0)/4, m1 - (m1-m0)/4]
+// holds <= max_valley of all pixels; otherwise -1.
+int bimodal_threshold_q4(const std::vector<std::int32_t>& hist, int lo, int min_px, double min_rel, double max_valley);
+// Each component with a threshold is cut in two by it and relabelled (8-neighbours join when they had
+// the same label and lie on the same side); `rounds` passes; labels renumbered in raster order of
+// first appearance. min_rel <= 0 or rounds <= 0: unchanged.
+ImageI32 split_bimodal_components(const ImageI32& components, int count, const ImageI16& disp, int min_px,
+                                  double min_rel, double max_valley, int rounds, int* out_count);
 
 // Box, size, median disparity, Z, X and class per component (components >= min area), nearest
 // first; fills `labels` (0 none, id+1).

@@ -108,6 +108,9 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   int n = 0;
   r.components = detect::connected_components(r.kept, disp, int(std::lround(p.cc_max_step_px * kDispScale)), &n,
                                                    p.cc_max_rel_step, int(std::lround(p.cc_min_step_px * kDispScale)));
+  // Splitting components whose disparity histogram has two modes (our addition).
+  r.components = detect::split_bimodal_components(r.components, n, disp, p.split_min_px, p.split_min_rel,
+                                                  p.split_max_valley, p.split_rounds, &n);
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
   lap(DetectStage::Objects);
   return r;

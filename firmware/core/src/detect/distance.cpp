@@ -69,17 +69,70 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
       }
     }
   }
+  // Each group's box, count and pixels go to its root (the other members keep n = 0).
   std::vector<int> root(std::size_t(count) + 1, 0);
-  for (int c = 1; c <= count; ++c) root[std::size_t(c)] = find(c);
-  for (int c = 1; c <= count; ++c) {
-    const int r = root[std::size_t(c)];
-    if (r == c || acc[std::size_t(c)].n == 0) continue;
-    Acc& a = acc[std::size_t(r)];
-    Acc& b = acc[std::size_t(c)];
-    a.x0 = std::min(a.x0, b.x0), a.y0 = std::min(a.y0, b.y0), a.x1 = std::max(a.x1, b.x1), a.y1 = std::max(a.y1, b.y1);
-    a.n += b.n;
-    a.d.insert(a.d.end(), b.d.begin(), b.d.end());
-    b.n = 0;
+  auto absorb = [&] {
+    for (int c = 1; c <= count; ++c) root[std::size_t(c)] = find(c);
+    for (int c = 1; c <= count; ++c) {
+      const int r = root[std::size_t(c)];
+      if (r == c || acc[std::size_t(c)].n == 0) continue;
+      Acc& a = acc[std::size_t(r)];
+      Acc& b = acc[std::size_t(c)];
+      a.x0 = std::min(a.x0, b.x0), a.y0 = std::min(a.y0, b.y0), a.x1 = std::max(a.x1, b.x1), a.y1 = std::max(a.y1, b.y1);
+      a.n += b.n;
+      a.d.insert(a.d.end(), b.d.begin(), b.d.end());
+      b.n = 0;
+      std::vector<std::int16_t>().swap(b.d);
+    }
+  };
+  absorb();
+  // Occlusion merging (our addition, docs/detection.md "(e)"): two merged groups at the same depth
+  // (medians within merge_max_rel_disparity), with the same top and bottom rows (within 1/20 of the
+  // taller height + 2 px), whose horizontal gap (more than merge_gap_px, at most
+  // merge_occluded_max_gap_px) is covered column by column (up to merge_gap_px columns may stay open)
+  // by the boxes of nearer groups (median > the larger median * (1 + merge_max_rel_disparity), >=
+  // min_area_px pixels, overlapping the two's common rows) are one obstacle seen on both sides of a
+  // nearer one. Runs on the merged groups, not on fragments, so pieces of two different obstacles
+  // are not compared.
+  if (p.merge_occluded_max_gap_px > 0 && p.merge_max_rel_disparity > 0) {
+    for (int c = 1; c <= count; ++c) {
+      Acc& a = acc[std::size_t(c)];
+      if (a.n == 0) continue;
+      const std::size_t mid = (a.d.size() - 1) / 2;  // lower median
+      std::nth_element(a.d.begin(), a.d.begin() + std::ptrdiff_t(mid), a.d.end());
+      med[std::size_t(c)] = a.d[mid];
+    }
+    std::vector<int> cover;
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a0 = acc[std::size_t(c1)];
+      if (a0.n == 0) continue;
+      for (int c2 = 1; c2 <= count; ++c2) {
+        const Acc& b0 = acc[std::size_t(c2)];
+        if (c2 == c1 || b0.n == 0 || b0.x0 <= a0.x1) continue;  // b strictly right of a
+        const int gap = b0.x0 - a0.x1 - 1;
+        if (gap <= std::max(p.merge_gap_px, 0) || gap > p.merge_occluded_max_gap_px) continue;
+        const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
+        if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
+        const int ry0 = std::max(a0.y0, b0.y0), ry1 = std::min(a0.y1, b0.y1);
+        // Same top and bottom rows: the two sides of one surface; two obstacles at one depth rarely
+        // share both.
+        const int tol = std::max(a0.y1 - a0.y0 + 1, b0.y1 - b0.y0 + 1) / 20 + 2;
+        if (std::abs(a0.y0 - b0.y0) > tol || std::abs(a0.y1 - b0.y1) > tol) continue;
+        if (find(c1) == find(c2)) continue;
+        cover.assign(std::size_t(gap), 0);
+        const double near_q4 = double(std::max(m1, m2)) * (1.0 + p.merge_max_rel_disparity);
+        for (int c3 = 1; c3 <= count; ++c3) {
+          const Acc& o = acc[std::size_t(c3)];
+          if (o.n < p.min_area_px || double(med[std::size_t(c3)]) <= near_q4 || o.y1 < ry0 || o.y0 > ry1) continue;
+          for (int x = std::max(o.x0, a0.x1 + 1); x <= std::min(o.x1, b0.x0 - 1); ++x) cover[std::size_t(x - a0.x1 - 1)] = 1;
+        }
+        // Up to merge_gap_px uncovered columns are allowed (box edges of neighbours need not meet).
+        if (std::count(cover.begin(), cover.end(), 0) > std::max(p.merge_gap_px, 0)) continue;
+        const int r1 = find(c1), r2 = find(c2);
+        parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      }
+    }
+    absorb();
   }
 
   std::vector<Obstacle> obs;

@@ -7,7 +7,8 @@ choices (docs/detection.md), written independently in float/numpy:
   sky      eq. (18)-(21)  HSV in float, exactly as written (no rounding)
   kmeans   eq. (22)-(23)  1-D Lloyd in float on the pixels, quantile init, centre merge
   udisp    eq. (24)-(25)  per-cluster column histograms (numpy), support and runs
-  objects                 8-connected flood fill with the disparity step, float median, Z = f B / d
+  objects                 8-connected flood fill with the disparity step, bimodal split (Otsu on the
+                          float values), fragment and occlusion merging, float median, Z = f B / d
 
 Where the firmware rounds (Q4 disparities, integer HSV, integer k-means means) this twin does not,
 so results agree up to those roundings; ``fuzzyctl compare`` measures the agreement.
@@ -377,6 +378,122 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
     return np.array([find(c) for c in range(n + 1)])
 
 
+def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: float) -> float | None:
+    """Otsu's threshold over the component's disparities (class 0: d < t, t between two distinct
+    values) when both classes have >= min_px pixels, their lower medians differ by >= min_rel of the
+    larger and the middle half between them holds <= max_valley of the pixels; else None."""
+    v = np.sort(v.astype(np.float64))
+    n = len(v)
+    if n < 2 * min_px or n == 0 or v[0] == v[-1]:
+        return None
+    cut = np.flatnonzero(np.diff(v) > 0) + 1  # class 0 = v[:k]
+    cut = cut[(cut >= min_px) & (n - cut >= min_px)]
+    if not len(cut):
+        return None
+    cs = np.cumsum(v)
+    n0 = cut.astype(np.float64)
+    mu0 = cs[cut - 1] / n0
+    mu1 = (cs[-1] - cs[cut - 1]) / (n - n0)
+    k = int(cut[int(np.argmax(n0 * (n - n0) * (mu0 - mu1) ** 2))])
+    m0, m1 = v[(k - 1) // 2], v[k + (n - k - 1) // 2]
+    if m1 - m0 < min_rel * m1 - 1e-9:
+        return None
+    g = (m1 - m0) / 4
+    if np.count_nonzero((v >= m0 + g - 1e-9) & (v <= m1 - g + 1e-9)) > max_valley * n + 1e-9:
+        return None
+    return float(v[k])
+
+
+def split_bimodal(comp: np.ndarray, n: int, disp: np.ndarray, min_px: int, min_rel: float, max_valley: float,
+                  rounds: int) -> tuple[np.ndarray, int]:
+    """Components with two disparity modes are cut at the threshold; pixels relabelled by 8-connected
+    components of (label, side) (docs/detection.md "(e) Splitting"); `rounds` passes."""
+    for _ in range(rounds if min_rel > 0 else 0):
+        side = np.zeros(comp.shape, np.int64)
+        any_split = False
+        for c in range(1, n + 1):
+            sel = comp == c
+            if not sel.any():
+                continue
+            t = bimodal_threshold(disp[sel], min_px, min_rel, max_valley)
+            if t is not None:
+                any_split = True
+                side[sel & (disp >= t - 1e-9)] = 1
+        if not any_split:
+            break
+        key = np.where(comp > 0, 2 * comp.astype(np.int64) + side, 0)
+        out = np.zeros(comp.shape, np.int32)
+        m = 0
+        for k in np.unique(key[key > 0]):
+            nk, lk = cv2.connectedComponents((key == k).astype(np.uint8), connectivity=8)
+            for j in range(1, nk):
+                m += 1
+                out[lk == j] = m
+        # renumber in raster order of first pixel (as the firmware)
+        order = {}
+        flat = out.ravel()
+        for v in flat[flat > 0]:
+            if v not in order:
+                order[v] = len(order) + 1
+        lut = np.zeros(m + 1, np.int32)
+        for v, r in order.items():
+            lut[v] = r
+        comp, n = lut[out], m
+    return comp, n
+
+
+def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, gap: int, rel: float,
+                   max_gap: int, min_area: int) -> np.ndarray:
+    """Groups (after merge_fragments) at the same depth (medians within rel) with the same top and
+    bottom rows (within 1/20 of the taller height + 2 px), whose horizontal gap (gap < g <= max_gap) is
+    covered by nearer groups' boxes (median > (1 + rel) * the larger, >= min_area px, overlapping the
+    common rows) up to `gap` open columns, join (docs/detection.md "(e) Occlusion merging")."""
+    if max_gap <= 0 or rel <= 0:
+        return roots
+    g = roots[comp] * (comp > 0)
+    root = {int(r): int(r) for r in np.unique(g[g > 0])}
+
+    def find(c: int) -> int:
+        while root[c] != c:
+            c = root[c]
+        return c
+    box, med, cnt = {}, {}, {}
+    for c in root:
+        ys, xs = np.nonzero(g == c)
+        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
+        med[c] = float(np.median(disp[ys, xs]))
+        cnt[c] = len(xs)
+    gap = max(gap, 0)
+    for c1 in sorted(box):
+        a = box[c1]
+        for c2 in sorted(box):
+            b = box[c2]
+            if c2 == c1 or b[0] <= a[2]:
+                continue
+            gw = b[0] - a[2] - 1
+            if gw <= gap or gw > max_gap or abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
+                continue
+            tol = max(a[3] - a[1] + 1, b[3] - b[1] + 1) // 20 + 2
+            if abs(a[1] - b[1]) > tol or abs(a[3] - b[3]) > tol or find(c1) == find(c2):
+                continue
+            ry0, ry1 = max(a[1], b[1]), min(a[3], b[3])
+            cover = np.zeros(gw, bool)
+            for c3, o in box.items():
+                if cnt[c3] >= min_area and med[c3] > max(med[c1], med[c2]) * (1 + rel) and o[3] >= ry0 and o[1] <= ry1:
+                    lo, hi = max(o[0], a[2] + 1), min(o[2], b[0] - 1)
+                    if hi >= lo:
+                        cover[lo - a[2] - 1:hi - a[2]] = True
+            if np.count_nonzero(~cover) > gap:
+                continue
+            r1, r2 = find(c1), find(c2)
+            root[max(r1, r2)] = min(r1, r2)
+    out = np.array(roots).copy()
+    for c in range(1, n + 1):
+        if out[c] in root:
+            out[c] = find(int(out[c]))
+    return out
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
@@ -405,7 +522,11 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     labels[cand] = lab
     kept = u_disparity_filter(disp, labels, len(centres), bins, p)
     comp, n = components(kept, disp, p.cc_max_step_px, float(p.cc_max_rel_step), float(p.cc_min_step_px))
+    comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
+                            int(p.split_rounds))
     roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
+    roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
+                           int(p.merge_occluded_max_gap_px), int(p.min_area_px))
     comp = roots[comp] * (comp > 0)
     obstacles = []
     comp_ids = []

@@ -1,0 +1,154 @@
+// Splitting bimodal components (our addition, docs/detection.md "(e) Splitting"). The paper groups
+// the kept pixels into obstacles without saying how; our 8-connected components join neighbours
+// whose disparities differ by a small step, so two obstacles at different depths that touch in the
+// image still join when the matcher smooths the disparity across their boundary (a ramp of small
+// steps), or when a strip of road or background at intermediate disparity links them. Such a
+// component's disparity histogram has two modes. Per component: Otsu's threshold on the Q4
+// histogram (maximum between-class variance); the component is split
+// when both classes hold >= min_px pixels, their lower medians differ by >= min_rel of the larger,
+// and the band between the two medians' inner quarters (the valley) holds <= max_valley of the
+// component's pixels (a slanted surface has a flat histogram: its valley holds ~25 %). The pixels
+// are then relabelled: 8-neighbours join when they had the same label and fall on the same side.
+// Repeated `rounds` times (a component spanning three depths splits twice).
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "fuzzystereo/detect.hpp"
+
+namespace fs::detect {
+
+namespace {
+int find(std::vector<int>& parent, int a) {
+  while (parent[std::size_t(a)] != a) {
+    parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
+    a = parent[std::size_t(a)];
+  }
+  return a;
+}
+}  // namespace
+
+int bimodal_threshold_q4(const std::vector<std::int32_t>& hist, int lo, int min_px, double min_rel, double max_valley) {
+  const int nb = int(hist.size());
+  std::int64_t n = 0, s = 0;
+  for (int i = 0; i < nb; ++i) n += hist[std::size_t(i)], s += std::int64_t(hist[std::size_t(i)]) * (lo + i);
+  if (n < 2 * std::int64_t(min_px) || nb < 2) return -1;
+  // Otsu: maximise the between-class term (s0*n1 - s1*n0)^2 / (n0*n1) over thresholds t (class 0:
+  // q4 < t); ties keep the lowest t. s0*n1 - s1*n0 is exact in int64 (|.| < 2^53 for images up to
+  // 2^21 pixels and Q4 < 2^12), so the square and the division are each one IEEE-rounded operation:
+  // the same value on every platform (no fused multiply-add applies).
+  std::int64_t n0 = 0, s0 = 0;
+  int best_t = -1;
+  double best = -1.0;
+  for (int i = 0; i + 1 < nb; ++i) {
+    n0 += hist[std::size_t(i)], s0 += std::int64_t(hist[std::size_t(i)]) * (lo + i);
+    const std::int64_t n1 = n - n0, s1 = s - s0;
+    if (n0 < min_px || n1 < min_px) continue;
+    const double diff = double(s0 * n1 - s1 * n0);
+    const double crit = diff * diff / double(n0 * n1);
+    if (crit > best) best = crit, best_t = lo + i + 1;
+  }
+  if (best_t < 0) return -1;
+  // Lower medians of the two classes and the valley between them.
+  std::int64_t c0 = 0, c1 = 0;
+  for (int q = lo; q < best_t; ++q) c0 += hist[std::size_t(q - lo)];
+  c1 = n - c0;
+  auto lower_median = [&](int from, int to, std::int64_t count) {
+    const std::int64_t want = (count - 1) / 2;
+    std::int64_t acc = 0;
+    for (int q = from; q < to; ++q) {
+      acc += hist[std::size_t(q - lo)];
+      if (acc > want) return q;
+    }
+    return to - 1;
+  };
+  const int m0 = lower_median(lo, best_t, c0), m1 = lower_median(best_t, lo + nb, c1);
+  if (double(m1 - m0) < min_rel * double(m1)) return -1;
+  const int g = (m1 - m0) / 4;  // valley = [m0 + g, m1 - g]
+  std::int64_t valley = 0;
+  for (int q = m0 + g; q <= m1 - g; ++q) valley += hist[std::size_t(q - lo)];
+  if (double(valley) > max_valley * double(n)) return -1;
+  return best_t;
+}
+
+ImageI32 split_bimodal_components(const ImageI32& components, int count, const ImageI16& disp, int min_px,
+                                  double min_rel, double max_valley, int rounds, int* out_count) {
+  ImageI32 lab = components;
+  int n = count;
+  const int w = lab.width, h = lab.height;
+  for (int round = 0; round < rounds && min_rel > 0; ++round) {
+    // Per component: Q4 range, then histogram and threshold.
+    std::vector<int> lo(std::size_t(n) + 1, 1 << 30), hi(std::size_t(n) + 1, -1);
+    for (std::size_t i = 0; i < lab.size(); ++i) {
+      const int c = lab.data[i];
+      if (c == 0) continue;
+      lo[std::size_t(c)] = std::min(lo[std::size_t(c)], int(disp.data[i]));
+      hi[std::size_t(c)] = std::max(hi[std::size_t(c)], int(disp.data[i]));
+    }
+    std::vector<std::size_t> off(std::size_t(n) + 2, 0);
+    for (int c = 1; c <= n; ++c) off[std::size_t(c) + 1] = off[std::size_t(c)] + std::size_t(hi[std::size_t(c)] >= lo[std::size_t(c)] ? hi[std::size_t(c)] - lo[std::size_t(c)] + 1 : 0);
+    std::vector<std::int32_t> hist(off[std::size_t(n) + 1], 0);
+    for (std::size_t i = 0; i < lab.size(); ++i) {
+      const int c = lab.data[i];
+      if (c) ++hist[off[std::size_t(c)] + std::size_t(disp.data[i] - lo[std::size_t(c)])];
+    }
+    std::vector<int> thr(std::size_t(n) + 1, -1);
+    bool any = false;
+    for (int c = 1; c <= n; ++c) {
+      if (off[std::size_t(c) + 1] == off[std::size_t(c)]) continue;
+      std::vector<std::int32_t> hc(hist.begin() + std::ptrdiff_t(off[std::size_t(c)]),
+                                   hist.begin() + std::ptrdiff_t(off[std::size_t(c) + 1]));
+      thr[std::size_t(c)] = bimodal_threshold_q4(hc, lo[std::size_t(c)], min_px, min_rel, max_valley);
+      any = any || thr[std::size_t(c)] >= 0;
+    }
+    if (!any) break;
+    // Relabel: key = 2 * label + side; 8-neighbours (W, NW, N, NE) join when their keys are equal.
+    auto key = [&](int x, int y) {
+      const int c = lab.at(x, y);
+      if (c == 0) return 0;
+      const int t = thr[std::size_t(c)];
+      return 2 * c + (t >= 0 && disp.at(x, y) >= t ? 1 : 0);
+    };
+    ImageI32 keys(w, h, 0);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) keys.at(x, y) = key(x, y);
+    ImageI32 tmp(w, h, 0);
+    std::vector<int> parent{0};
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const int k = keys.at(x, y);
+        if (k == 0) continue;
+        int cur = 0;
+        const int nx[4] = {x - 1, x - 1, x, x + 1}, ny[4] = {y, y - 1, y - 1, y - 1};
+        for (int j = 0; j < 4; ++j) {
+          if (nx[j] < 0 || nx[j] >= w || ny[j] < 0 || keys.at(nx[j], ny[j]) != k) continue;
+          const int nl = tmp.at(nx[j], ny[j]);
+          if (cur == 0) {
+            cur = nl;
+          } else {
+            const int a = find(parent, cur), b = find(parent, nl);
+            if (a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);
+          }
+        }
+        if (cur == 0) {
+          cur = int(parent.size());
+          parent.push_back(cur);
+        }
+        tmp.at(x, y) = cur;
+      }
+    std::vector<int> final_label(parent.size(), 0);
+    int m = 0;
+    for (auto& v : tmp.data) {
+      if (v == 0) continue;
+      const int r = find(parent, v);
+      if (final_label[std::size_t(r)] == 0) final_label[std::size_t(r)] = ++m;
+      v = final_label[std::size_t(r)];
+    }
+    lab = std::move(tmp);
+    n = m;
+  }
+  if (out_count) *out_count = n;
+  return lab;
+}
+
+}  // namespace fs::detect
