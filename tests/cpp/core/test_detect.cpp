@@ -71,15 +71,20 @@ TEST(DetectStages, RoadPixelsAndClosingMatchReference) {
       std::size_t lost = 0, gained = 0;
       for (std::size_t i = 0; i < wide.size(); ++i) lost += fast.data[i] && !wide.data[i], gained += wide.data[i] && !fast.data[i];
       EXPECT_EQ(lost, 0u);
-      if (c.noise > 0.5 && rel >= 0.1) EXPECT_GT(gained, 0u) << c.w << "x" << c.h;
+      if (c.noise > 0.5 && rel >= 0.1) {
+        EXPECT_GT(gained, 0u) << c.w << "x" << c.h;
+      }
     }
     // Road completion: bit-exact, and only invalid pixels change.
     const ImageU8 closed = detect::close_mask(fast, 2);
     for (int run : {0, 3, 16, 1000}) {
       const ImageU8 done = detect::complete_road(closed, s.disp, table, run);
       expect_same(done, ref::complete_road(closed, s.disp, table, run), "road completion");
-      for (std::size_t i = 0; i < done.size(); ++i)
-        if (done.data[i] != closed.data[i]) ASSERT_EQ(s.disp.data[i], kInvalidDisp);
+      for (std::size_t i = 0; i < done.size(); ++i) {
+        if (done.data[i] != closed.data[i]) {
+          ASSERT_EQ(s.disp.data[i], kInvalidDisp);
+        }
+      }
     }
   }
 }
