@@ -18,6 +18,8 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
   // OpenCV's filterSpeckles, which fs_core cannot call); components of <= max_size pixels go.
   std::vector<std::int32_t> label(static_cast<std::size_t>(w) * h, -1);
   std::vector<std::int32_t> stack, members;
+  stack.reserve(1024);
+  members.reserve(1024);
   int count = 0;
   for (int start = 0; start < w * h; ++start) {
     if (label[start] >= 0 || disp.data[start] == kInvalidDisp) continue;
@@ -58,15 +60,22 @@ namespace {
 // Directions (dy, dx) of the 8 rays; ray k of pixel p holds the first valid disparity met walking
 // from p against (dy, dx), p itself included. Index 0 = from the left, 1 = from the right.
 constexpr std::array<std::array<int, 2>, 8> kDirs{{{0, 1}, {0, -1}, {1, 0}, {-1, 0}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}}};
+// "No estimate" inside the ray planes: larger than any Q4 disparity, so it sorts last.
+constexpr std::int16_t kNone = 32767;
+// An optimal sorting network for 8 values (19 compare-exchanges, Knuth TAOCP 5.3.4); branch-free,
+// so the compiler vectorises it across a row.
+constexpr std::array<std::array<int, 2>, 19> kSort8{{{0, 2}, {1, 3}, {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7},
+                                                     {0, 1}, {2, 3}, {4, 5}, {6, 7}, {2, 4}, {3, 5}, {1, 4}, {3, 6},
+                                                     {1, 2}, {3, 4}, {5, 6}}};
 
-// One ray plane: nearest valid value met walking against (dy, dx), kInvalidDisp if none.
+// One ray plane: nearest valid value met walking against (dy, dx), kNone if none.
 void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out) {
   const int w = d.width, h = d.height;
   if (dy == 0) {
     for (int y = 0; y < h; ++y) {
       const std::int16_t* s = d.row(y);
       std::int16_t* o = out + static_cast<std::size_t>(y) * w;
-      std::int16_t prev = kInvalidDisp;
+      std::int16_t prev = kNone;
       if (dx > 0) {
         for (int x = 0; x < w; ++x) o[x] = prev = (s[x] != kInvalidDisp ? s[x] : prev);
       } else {
@@ -80,13 +89,15 @@ void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out) {
   for (int y = y0; y != y_end; y += dy) {
     const std::int16_t* s = d.row(y);
     std::int16_t* o = out + static_cast<std::size_t>(y) * w;
-    for (int x = 0; x < w; ++x) {
-      if (s[x] != kInvalidDisp) {
-        o[x] = s[x];
-      } else {
-        const int xs = x - dx;
-        o[x] = (prev_row && xs >= 0 && xs < w) ? prev_row[xs] : kInvalidDisp;
-      }
+    if (!prev_row) {
+      for (int x = 0; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
+    } else {
+      // interior: o[x] = s[x] valid ? s[x] : prev_row[x - dx]; the column whose source lies
+      // outside the image has none.
+      const int x_lo = std::max(0, dx), x_hi = std::min(w, w + dx);
+      for (int x = 0; x < x_lo; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
+      for (int x = x_lo; x < x_hi; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : prev_row[x - dx];
+      for (int x = x_hi; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
     }
     prev_row = o;
   }
@@ -102,30 +113,43 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled) {
   const std::size_t n = static_cast<std::size_t>(w) * h;
   std::vector<std::int16_t> rays(8 * n);
   for (int k = 0; k < 8; ++k) scan_ray(disp, kDirs[k][0], kDirs[k][1], rays.data() + k * n);
-  for (std::size_t p = 0; p < n; ++p) {
-    if (disp.data[p] != kInvalidDisp) continue;
-    const std::int16_t from_left = rays[p], from_right = rays[n + p];
-    std::int16_t v = kInvalidDisp;
-    if (from_left == kInvalidDisp && from_right != kInvalidDisp) {
-      // Left image border band (x < d): nothing to the left can match; extend the row's first
-      // estimate, as the rays from above/below there cross unrelated, farther structure.
-      v = from_right;
-    } else {
-      std::array<std::int16_t, 8> c{};
-      int m = 0;
-      for (int k = 0; k < 8; ++k) {
-        const std::int16_t r = rays[k * n + p];
-        if (r != kInvalidDisp) c[m++] = r;
-      }
-      if (m > 0) {
-        for (int i = 1; i < m; ++i)  // insertion sort: at most 8 values
-          for (int j = i; j > 0 && c[j - 1] > c[j]; --j) std::swap(c[j - 1], c[j]);
-        // Median; for an even count the mean of the two middle values, rounded half up (Q4).
-        v = (m & 1) ? c[m / 2] : static_cast<std::int16_t>((c[m / 2 - 1] + c[m / 2] + 1) >> 1);
+  std::vector<std::int16_t> sorted(8 * static_cast<std::size_t>(w));
+  for (int y = 0; y < h; ++y) {
+    const std::size_t row = static_cast<std::size_t>(y) * w;
+    std::int16_t* c[8];
+    for (int k = 0; k < 8; ++k) {
+      c[k] = sorted.data() + static_cast<std::size_t>(k) * w;
+      std::copy_n(rays.data() + k * n + row, w, c[k]);
+    }
+    for (const auto& e : kSort8) {
+      std::int16_t* a = c[e[0]];
+      std::int16_t* b = c[e[1]];
+      for (int x = 0; x < w; ++x) {
+        const std::int16_t lo = std::min(a[x], b[x]), hi = std::max(a[x], b[x]);
+        a[x] = lo;
+        b[x] = hi;
       }
     }
-    out.data[p] = v;
-    if (filled && v != kInvalidDisp) filled->data[p] = 1;
+    const std::int16_t* from_left = rays.data() + row;
+    const std::int16_t* from_right = rays.data() + n + row;
+    const std::int16_t* src = disp.row(y);
+    std::int16_t* o = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      if (src[x] != kInvalidDisp) continue;
+      std::int16_t v = kInvalidDisp;
+      if (from_left[x] == kNone && from_right[x] != kNone) {
+        // Left image border band (x < d): nothing to the left can match; extend the row's first
+        // estimate, as the rays from above/below there cross unrelated, farther structure.
+        v = from_right[x];
+      } else {
+        int m = 0;
+        while (m < 8 && c[m][x] != kNone) ++m;
+        if (m > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
+          v = (m & 1) ? c[m / 2][x] : static_cast<std::int16_t>((c[m / 2 - 1][x] + c[m / 2][x] + 1) >> 1);
+      }
+      o[x] = v;
+      if (filled && v != kInvalidDisp) filled->at(x, y) = 1;
+    }
   }
   return out;
 }
