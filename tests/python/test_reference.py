@@ -362,7 +362,7 @@ def test_lr_check_keeps_the_interior_and_drops_the_left_border(fis):
 def test_esr_disabled_keeps_the_lr_map(fis):
     left, right = shifted_pair(32, 48, 3, seed=1)
     r = match(left, right, small_config(esr__enabled=False), fis)
-    np.testing.assert_array_equal(np.isnan(r.disp_final), np.isnan(r.disp_lr))
+    np.testing.assert_array_equal(np.isnan(r.disp_esr), np.isnan(r.disp_lr))
     assert not r.esr_replaced.any()
 
 
