@@ -61,7 +61,7 @@ void run_detect(const DetectOptions& o) {
                       o.right + "' is " + std::to_string(rc.cols) + "x" + std::to_string(rc.rows) + "; a rectified pair must match");
     const Matcher matcher(cfg.matcher, load_fis_definition(""));
     const MatchResult mr = matcher.match(to_core_gray(lc), to_core_gray(rc));
-    disp = mr.disp_final;
+    disp = mr.disp_esr;  // the detector is tuned on the sparse ESR map, not the densified one
     mt = mr.timings;
     matched = true;
   }

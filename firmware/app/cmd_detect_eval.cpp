@@ -317,7 +317,7 @@ void run_detect_eval(const EvalOptions& o) {
       const cv::Mat rc = read_image((tr / "image_3" / (s + ".png")).string(), cv::IMREAD_COLOR);
       if (rc.size() != lc.size()) throw UserError("frame " + s + ": left and right sizes differ");
       const MatchResult mr = matcher->match(to_core_gray(lc), to_core_gray(rc));
-      disp = mr.disp_final;
+      disp = mr.disp_esr;  // the detector is tuned on the sparse ESR map, not the densified one
       mt = mr.timings;
       frame_matched = true;
       if (use_cache) write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);

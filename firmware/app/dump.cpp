@@ -40,6 +40,8 @@ void write_match_dump(const std::string& dir, const std::string& left_name, cons
   write_npy(dir + "/lr_mask.npy", r.lr_mask.data.data(), {h, w});
   write_npy(dir + "/disp_lr.npy", r.disp_lr.data.data(), {h, w});
   write_npy(dir + "/esr_replaced.npy", r.esr_replaced.data.data(), {h, w});
+  write_npy(dir + "/disp_esr.npy", r.disp_esr.data.data(), {h, w});
+  write_npy(dir + "/densify_changed.npy", r.densify_changed.data.data(), {h, w});
   write_npy(dir + "/disp_final.npy", r.disp_final.data.data(), {h, w});
   nlohmann::json meta;
   meta["format"] = "fuzzystereo-dump";

@@ -487,13 +487,13 @@ LoopResult RobotLoop::run() {
 
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
-    const DetectResult det = detector.detect(mr.disp_final, rgb_left, I.calib);
+    const DetectResult det = detector.detect(mr.disp_esr, rgb_left, I.calib);
     stage_ms["detect"].push_back(wall_ms_since(s1));
 
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
-    measurements_of(det, mr.disp_final, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
+    measurements_of(det, mr.disp_esr, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
@@ -716,7 +716,7 @@ LoopResult RobotLoop::run() {
         std::snprintf(stem, sizeof stem, "%06d", frame);
         const stdfs::path base = stdfs::path(opt.record_dir) / "frames";
         write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
-        const cv::Mat dispf = disp_q4_to_float(mr.disp_final);
+        const cv::Mat dispf = disp_q4_to_float(mr.disp_esr);
         write_image((base / (std::string(stem) + "_disp.png")).string(),
                     colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
         fj["snapshot"] = std::string("frames/") + stem;

@@ -164,6 +164,10 @@ MatcherParams to_params(const Values& v) {
   p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
   p.esr.tau = v.num("esr.tau");
+  p.densify.enabled = v.flag("densify.enabled");
+  p.densify.speckle_max_size = i("densify.speckle_max_size");
+  p.densify.speckle_max_diff = i("densify.speckle_max_diff");
+  p.densify.fill = v.flag("densify.fill");
   p.runtime.threads = i("runtime.threads");
   return p;
 }
@@ -250,6 +254,9 @@ std::string config_to_toml(const MatcherParams& p) {
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
     << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"
+    << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
+    << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
+    << "\nfill = " << (p.densify.fill ? "true" : "false") << "\n\n"
     << "[runtime]\nthreads = " << p.runtime.threads << "\n\n"
     << "[testing]\ninject_shift = " << p.cost.inject_shift << "\n";
   return s.str();

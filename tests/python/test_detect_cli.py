@@ -110,7 +110,7 @@ def test_detect_with_matcher(firmware_bin, dataset, tmp_path):
     assert p.returncode == 0, p.stderr
     out = json.loads((tmp_path / "obstacles.json").read_text())
     assert out["disparity_source"] == "matcher"
-    assert set(out["matcher_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr"}
+    assert set(out["matcher_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify"}
     assert (tmp_path / "disp_left.png").is_file()
     # The near box (2 m) is found by the matcher too, within 10 %.
     near = gt_obstacles(dataset, 0)[0]
@@ -215,7 +215,7 @@ def test_detect_eval_matcher(firmware_bin, dataset, tmp_path):
     assert p.returncode == 0, p.stderr
     o = json.loads(js.read_text())["overall"]
     ms = o["ms_per_frame"]
-    assert set(ms["matcher"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr"}
+    assert set(ms["matcher"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify"}
     assert set(ms["detect"]) == {"road", "sky", "kmeans", "udisparity", "objects"}
     assert ms["matcher_total"] > 0 and 0 < ms["detect_over_matcher"] < 1
     # The matcher's disparities on these 192x144 frames are coarser than the truth; measured 4 of 6.

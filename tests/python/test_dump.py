@@ -52,7 +52,7 @@ def test_round_trip(ref_dump):
     np.testing.assert_array_equal(d["lr_mask"].astype(bool), r.lr_mask)
     for name, (dtype, _) in dm.ARRAYS.items():
         assert d[name].dtype == dtype
-    assert set(d.meta["timings_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr"}
+    assert set(d.meta["timings_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify"}
 
 
 def _copy(src, dst):

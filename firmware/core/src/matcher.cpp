@@ -17,6 +17,7 @@ const char* stage_name(Stage s) {
     case Stage::Wta: return "wta";
     case Stage::LrCheck: return "lrcheck";
     case Stage::Esr: return "esr";
+    case Stage::Densify: return "densify";
     default: return "?";
   }
 }
@@ -102,13 +103,21 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   clock.lap(Stage::LrCheck);
 
   if (p.esr.enabled) {                                                                  // eq. (14)-(15)
-    r.disp_final = entropy_selective_refinement(r.disp_lr, r.disp_right_wta, p.esr, p.cost.max_disparity,
-                                                &r.esr_replaced);
+    r.disp_esr = entropy_selective_refinement(r.disp_lr, r.disp_right_wta, p.esr, p.cost.max_disparity,
+                                              &r.esr_replaced);
   } else {
-    r.disp_final = r.disp_lr;
+    r.disp_esr = r.disp_lr;
     r.esr_replaced = ImageU8(left.width, left.height, 0);
   }
   clock.lap(Stage::Esr);
+
+  if (p.densify.enabled) {                                                              // not in the paper
+    r.disp_final = densify(r.disp_esr, p.densify, &r.densify_changed);
+  } else {
+    r.disp_final = r.disp_esr;
+    r.densify_changed = ImageU8(left.width, left.height, 0);
+  }
+  clock.lap(Stage::Densify);
   return r;
 }
 

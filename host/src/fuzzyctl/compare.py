@@ -28,6 +28,7 @@ from .config import Config, default_values, parse_config
 from .errors import FatalError
 from .fis import Fis, load_definition
 from .reference import STAGES, ReferenceResult, match
+from .reference.densify import densify
 from .reference.esr import entropy_selective_refinement
 from .reference.lrcheck import left_right_check
 from .reference.segmentation import label_agreement
@@ -154,7 +155,8 @@ _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) re
 _doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides)")
 _doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask")
 _doc("esr_replaced_isolated_agreement_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's replaced mask")
-_doc("final_isolated_within_0px_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's final map (Q4)")
+_doc("final_isolated_within_0px_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's ESR map disp_esr (Q4)")
+_doc("densify_isolated_within_1px_pct", "densify", "%", "reference densify on the firmware's ESR map vs the firmware's final map")
 _doc("final_valid_firmware_pct", "esr", "%", "valid pixels of the firmware's final map")
 _doc("final_valid_reference_pct", "esr", "%", "valid pixels of the reference's final map")
 _doc("reference_fis_check_error", "wta", "", "reference: |fast FIS engine - ControlSystemSimulation| on sampled winners")
@@ -246,7 +248,11 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
     else:
         iso_final, iso_rep = fw_lr, np.zeros(fw_lr.shape, dtype=bool)
     values["esr_replaced_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_rep == (d["esr_replaced"] != 0)))
-    values["final_isolated_within_0px_pct"] = map_agreement(d.disp("disp_final"), reference_q4(iso_final), 0)
+    fw_esr = d.disp("disp_esr") if "disp_esr" in d else d.disp("disp_final")  # dumps before the densify stage
+    values["final_isolated_within_0px_pct"] = map_agreement(fw_esr, reference_q4(iso_final), 0)
+    dn = cfg.densify
+    iso_dense, _ = densify(fw_esr, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill)
+    values["densify_isolated_within_1px_pct"] = map_agreement(d.disp("disp_final"), reference_q4(iso_dense), 1)
     values["reference_fis_check_error"] = r.fis_check_error
     values["final_valid_firmware_pct"] = 100.0 * float(np.mean(d["disp_final"] != dumpmod.INVALID_DISP))
     values["final_valid_reference_pct"] = 100.0 * float(np.mean(~np.isnan(r.disp_final)))

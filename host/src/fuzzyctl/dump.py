@@ -40,8 +40,12 @@ ARRAYS: dict[str, tuple[np.dtype, str]] = {
     "lr_mask": (np.dtype(np.uint8), "hw"),
     "disp_lr": (np.dtype(np.int16), "hw"),
     "esr_replaced": (np.dtype(np.uint8), "hw"),
+    "disp_esr": (np.dtype(np.int16), "hw"),
+    "densify_changed": (np.dtype(np.uint8), "hw"),
     "disp_final": (np.dtype(np.int16), "hw"),
 }
+#: arrays that dumps written before the densify stage lack (disp_final is then the ESR map)
+OPTIONAL = frozenset({"disp_esr", "densify_changed"})
 #: columns of seg_*.npy: integer winner [px] (-1 = none), FIS score Q16, Data Cost 1 Q16,
 #: Data Cost 2 Q16, painted disparity Q4 after the sub-pixel parabola (-1 = none)
 SEG_DISP, SEG_SCORE, SEG_DC1, SEG_DC2, SEG_DISP_Q4 = range(5)
@@ -97,6 +101,9 @@ class Dump:
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.arrays[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.arrays
 
     def disp(self, name: str) -> np.ndarray:
         """A disparity map in float px, NaN = invalid."""
@@ -169,6 +176,8 @@ def read_dump(run_dir: str | Path, arrays: bool = True) -> Dump:
         return dump
     for name, (dtype, kind) in ARRAYS.items():
         path = d / f"{name}.npy"
+        if name in OPTIONAL and not path.exists():
+            continue
         a = _load_npy(path)
         if a.dtype != dtype:
             raise FatalError(f"dump file {path} has dtype {a.dtype}, expected {dtype}")
@@ -231,6 +240,8 @@ def write_dump(out_dir: str | Path, result, meta_extra: dict[str, Any]) -> Path:
         "lr_mask": result.lr_mask.astype(np.uint8),
         "disp_lr": disp_to_q4(result.disp_lr),
         "esr_replaced": result.esr_replaced.astype(np.uint8),
+        "disp_esr": disp_to_q4(result.disp_esr),
+        "densify_changed": result.densify_changed.astype(np.uint8),
         "disp_final": disp_to_q4(result.disp_final),
     }
     for name, a in arrays.items():

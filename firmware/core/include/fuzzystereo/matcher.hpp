@@ -13,7 +13,7 @@
 namespace fs {
 
 // Stage names, in pipeline order, for timings and dumps.
-enum class Stage : int { Gradient, Segmentation, Cost, Wta, LrCheck, Esr, Count };
+enum class Stage : int { Gradient, Segmentation, Cost, Wta, LrCheck, Esr, Densify, Count };
 const char* stage_name(Stage s);
 
 struct StageTimings {
@@ -27,8 +27,10 @@ struct MatchResult {
   ImageI16 disp_left_wta, disp_right_wta;  // Q4, WTA per segment
   ImageI16 disp_lr;                         // Q4, after eq. (13)
   ImageU8 lr_mask;                          // 1 = consistent
-  ImageI16 disp_final;                      // Q4, after ESR (== disp_lr when ESR disabled)
+  ImageI16 disp_esr;                        // Q4, after ESR (== disp_lr when ESR disabled)
   ImageU8 esr_replaced;                     // 1 = replaced by eq. (15)
+  ImageI16 disp_final;                      // Q4, after densify (== disp_esr when densify disabled)
+  ImageU8 densify_changed;                  // 0 kept, 1 filled, 2 removed as a speckle (then filled)
   StageTimings timings;
 };
 

@@ -35,6 +35,14 @@ struct EsrParams {
   double tau = 0.5;   // [bit], eq. (15)
 };
 
+// Densification after ESR (not in the paper, docs/algorithm.md "Densification").
+struct DensifyParams {
+  bool enabled = true;
+  int speckle_max_size = 100;  // [px]; components of <= this many pixels are removed, 0 = off
+  int speckle_max_diff = 3;    // [px]; neighbours within this belong to one component
+  bool fill = true;            // 8-direction median fill of pixels without an estimate
+};
+
 struct RuntimeParams {
   int threads = 0;  // 0 = all cores
 };
@@ -45,6 +53,7 @@ struct MatcherParams {
   FisParams fis;
   LrParams lr;
   EsrParams esr;
+  DensifyParams densify;
   RuntimeParams runtime;
 };
 

@@ -106,4 +106,20 @@ ImageI16 block_mean(const ImageI16& disp, int window);
 ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
                                       int max_disparity, ImageU8* replaced);
 
+// ---- densify/ ------------------------------------------------------------------------------
+// Not in the paper (docs/algorithm.md "Densification"). All maps Q4, kInvalidDisp = no estimate.
+// Speckle removal: 4-connected components of valid pixels whose neighbours differ by at most
+// max_diff_q4 are set invalid when they hold <= max_size pixels (max_size 0: nothing removed).
+// removed (optional, pre-sized) receives 1 per removed pixel. Returns the number removed.
+int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* removed);
+// 8-direction median fill: each invalid pixel takes the median of the first valid disparity met
+// along each of the 8 rays (horizontal, vertical, diagonal) from it (mean of the two middle values,
+// rounded half up, for an even count); in the left border band, where no ray from the left meets
+// an estimate, it takes the nearest estimate to its right. filled (optional) receives 1 per filled pixel.
+ImageI16 median_fill(const ImageI16& disp, ImageU8* filled);
+// Q4 value 0 (disparity 0, no match in range) counts as no estimate; then remove_speckles, then
+// median_fill when p.fill. changed (optional): 0 kept, 1 filled, 2 zero or removed
+// as a speckle (then filled when p.fill).
+ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed);
+
 }  // namespace fs

@@ -14,9 +14,9 @@ import numpy as np
 from ..config import Config
 from ..errors import FatalError
 from ..fis import Fis
-from . import cost, esr, image, lrcheck, segmentation, wta
+from . import cost, densify, esr, image, lrcheck, segmentation, wta
 
-STAGES = ("gradient", "segmentation", "cost", "wta", "lrcheck", "esr")
+STAGES = ("gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify")
 
 
 @dataclass
@@ -33,8 +33,10 @@ class ReferenceResult:
     disp_right_wta: np.ndarray
     lr_mask: np.ndarray  # bool
     disp_lr: np.ndarray
-    disp_final: np.ndarray
+    disp_esr: np.ndarray  # after ESR
     esr_replaced: np.ndarray  # bool
+    disp_final: np.ndarray  # after densify (== disp_esr when disabled)
+    densify_changed: np.ndarray  # uint8: 0 kept, 1 filled, 2 zero or speckle
     esr_maps: dict[str, np.ndarray] = field(default_factory=dict)
     timings_ms: dict[str, float] = field(default_factory=dict)
     labels_given: bool = False
@@ -77,7 +79,7 @@ def match(
         raise FatalError(f"left {left.shape[::-1]} and right {right.shape[::-1]} must be non-empty grey images of equal size")
     labels_left = _check_labels(labels_left, left.shape, "labels_left")
     labels_right = _check_labels(labels_right, left.shape, "labels_right")
-    c, s, lr, e = cfg.cost, cfg.segmentation, cfg.lr_check, cfg.esr
+    c, s, lr, e, dn = cfg.cost, cfg.segmentation, cfg.lr_check, cfg.esr, cfg.densify
     clock = _Clock()
 
     grad_l = image.gradient_magnitude(left)  # eq. (5)
@@ -105,16 +107,19 @@ def match(
     clock.lap("lrcheck")
 
     if e.enabled:  # eq. (14)-(15)
-        final, replaced, maps = esr.entropy_selective_refinement(disp_lr, disp_r, e.window, e.tau, c.max_disparity)
+        disp_esr, replaced, maps = esr.entropy_selective_refinement(disp_lr, disp_r, e.window, e.tau, c.max_disparity)
     else:
-        final, replaced, maps = disp_lr.copy(), np.zeros(left.shape, dtype=bool), {}
+        disp_esr, replaced, maps = disp_lr.copy(), np.zeros(left.shape, dtype=bool), {}
     clock.lap("esr")
+
+    final, changed = densify.densify(disp_esr, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill)  # not in the paper
+    clock.lap("densify")
 
     return ReferenceResult(
         left=left, right=right, labels_left=lab_l, labels_right=lab_r,
         costs_left=costs_l, costs_right=costs_r, dec_left=dec_l, dec_right=dec_r,
         disp_left_wta=disp_l, disp_right_wta=disp_r, lr_mask=mask, disp_lr=disp_lr,
-        disp_final=final, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
+        disp_esr=disp_esr, disp_final=final, densify_changed=changed, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
         labels_given=labels_left is not None and labels_right is not None, fis_check_error=fis_check,
     )  # fmt: skip
 

@@ -1,0 +1,158 @@
+// Densification (speckle removal + 8-direction median fill) against plain brute-force references:
+// a union-find labelling for the speckles and a per-pixel ray walk for the fill.
+#include <algorithm>
+#include <numeric>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "config.hpp"
+#include "fuzzystereo/stages.hpp"
+
+namespace fs {
+namespace {
+
+// Piecewise-constant blocks of random size (like painted segments) with random holes.
+ImageI16 blocky_disp(int w, int h, unsigned seed, int invalid_pct) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> ud(1, 60 * kDispScale), up(0, 99), len(1, 12);
+  ImageI16 img(w, h, kInvalidDisp);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w;) {
+      const int n = len(rng);
+      const bool copy_up = y > 0 && up(rng) < 60;
+      const std::int16_t v = up(rng) < invalid_pct ? kInvalidDisp : static_cast<std::int16_t>(ud(rng));
+      for (int i = 0; i < n && x < w; ++i, ++x) img.at(x, y) = copy_up ? img.at(x, y - 1) : v;
+    }
+  return img;
+}
+
+int find(std::vector<int>& p, int a) {
+  while (p[a] != a) a = p[a] = p[p[a]];
+  return a;
+}
+
+ImageI16 speckles_reference(const ImageI16& d, int max_size, int max_diff_q4) {
+  const int w = d.width, h = d.height;
+  std::vector<int> parent(w * h);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto ok = [&](int a, int b) {
+    return d.data[a] != kInvalidDisp && d.data[b] != kInvalidDisp && std::abs(d.data[a] - d.data[b]) <= max_diff_q4;
+  };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int p = y * w + x;
+      if (x + 1 < w && ok(p, p + 1)) parent[find(parent, p)] = find(parent, p + 1);
+      if (y + 1 < h && ok(p, p + w)) parent[find(parent, p)] = find(parent, p + w);
+    }
+  std::vector<int> size(w * h, 0);
+  for (int p = 0; p < w * h; ++p)
+    if (d.data[p] != kInvalidDisp) ++size[find(parent, p)];
+  ImageI16 out = d;
+  for (int p = 0; p < w * h; ++p)
+    if (d.data[p] != kInvalidDisp && size[find(parent, p)] <= max_size) out.data[p] = kInvalidDisp;
+  return out;
+}
+
+ImageI16 fill_reference(const ImageI16& d) {
+  const int w = d.width, h = d.height;
+  const int dirs[8][2] = {{0, 1}, {0, -1}, {1, 0}, {-1, 0}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+  ImageI16 out = d;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (d.at(x, y) != kInvalidDisp) continue;
+      std::vector<int> v;
+      int ray[8];
+      for (int k = 0; k < 8; ++k) {
+        ray[k] = kInvalidDisp;
+        for (int s = 1;; ++s) {  // walk against the direction
+          const int yy = y - s * dirs[k][0], xx = x - s * dirs[k][1];
+          if (yy < 0 || yy >= h || xx < 0 || xx >= w) break;
+          if (d.at(xx, yy) != kInvalidDisp) {
+            ray[k] = d.at(xx, yy);
+            break;
+          }
+        }
+        if (ray[k] != kInvalidDisp) v.push_back(ray[k]);
+      }
+      int r = kInvalidDisp;
+      if (ray[0] == kInvalidDisp && ray[1] != kInvalidDisp) {
+        r = ray[1];
+      } else if (!v.empty()) {
+        std::sort(v.begin(), v.end());
+        const std::size_t m = v.size();
+        r = (m % 2) ? v[m / 2] : (v[m / 2 - 1] + v[m / 2] + 1) / 2;
+      }
+      out.at(x, y) = static_cast<std::int16_t>(r);
+    }
+  return out;
+}
+
+TEST(Densify, SpecklesMatchUnionFindReference) {
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    const int w = 37 + 2 * static_cast<int>(seed), h = 29 + static_cast<int>(seed);
+    const ImageI16 d = blocky_disp(w, h, seed, 25);
+    for (int size : {0, 1, 7, 40}) {
+      ImageI16 a = d;
+      ImageU8 removed(w, h, 0);
+      const int n = remove_speckles(a, size, 2 * kDispScale, &removed);
+      const ImageI16 ref = size > 0 ? speckles_reference(d, size, 2 * kDispScale) : d;
+      ASSERT_EQ(a.data, ref.data) << "seed " << seed << " size " << size;
+      int diff = 0;
+      for (std::size_t i = 0; i < d.data.size(); ++i) diff += d.data[i] != a.data[i];
+      EXPECT_EQ(n, diff);
+      if (size == 40) EXPECT_GT(n, 0) << "test image has no speckle; the check would be empty";
+    }
+  }
+}
+
+TEST(Densify, MedianFillMatchesRayWalkReference) {
+  for (unsigned seed = 11; seed <= 16; ++seed) {
+    const int w = 41 + 2 * static_cast<int>(seed % 5), h = 23 + 2 * static_cast<int>(seed % 3);
+    for (int pct : {10, 60, 95}) {
+      const ImageI16 d = blocky_disp(w, h, seed * 7 + pct, pct);
+      ImageU8 filled;
+      const ImageI16 out = median_fill(d, &filled);
+      ASSERT_EQ(out.data, fill_reference(d).data) << "seed " << seed << " invalid " << pct << "%";
+      for (std::size_t i = 0; i < d.data.size(); ++i)
+        EXPECT_EQ(filled.data[i], d.data[i] == kInvalidDisp && out.data[i] != kInvalidDisp ? 1 : 0);
+    }
+  }
+}
+
+TEST(Densify, AllInvalidStaysInvalidAndLeftBorderTakesRightNeighbour) {
+  ImageI16 none(9, 5, kInvalidDisp);
+  EXPECT_EQ(median_fill(none, nullptr).data, none.data);
+  // One row: holes at the left border take the first estimate to their right, not a median.
+  ImageI16 row(7, 1, kInvalidDisp);
+  row.at(3, 0) = 80;
+  row.at(6, 0) = 16;
+  const ImageI16 f = median_fill(row, nullptr);
+  EXPECT_EQ(f.at(0, 0), 80);
+  EXPECT_EQ(f.at(2, 0), 80);
+  EXPECT_EQ(f.at(4, 0), (16 + 80 + 1) / 2);  // two rays: mean of left (80) and right (16)
+}
+
+TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {
+  ImageI16 d(5, 3, 32);
+  d.at(2, 1) = 0;
+  DensifyParams p;
+  p.speckle_max_size = 0;
+  ImageU8 changed;
+  const ImageI16 out = densify(d, p, &changed);
+  EXPECT_EQ(out.at(2, 1), 32);
+  EXPECT_EQ(changed.at(2, 1), 2);
+  p.fill = false;
+  EXPECT_EQ(densify(d, p, nullptr).at(2, 1), kInvalidDisp);
+}
+
+TEST(Densify, ConfigSectionReachesTheParams) {
+  const MatcherParams p = parse_matcher_config("[densify]\nenabled = false\nspeckle_max_size = 7\n", "t.toml");
+  EXPECT_FALSE(p.densify.enabled);
+  EXPECT_EQ(p.densify.speckle_max_size, 7);
+  EXPECT_THROW(parse_matcher_config("[densify]\nspeckle_max_diff = -1\n", "t.toml"), ConfigError);
+}
+
+}  // namespace
+}  // namespace fs
