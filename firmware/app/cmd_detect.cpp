@@ -59,7 +59,7 @@ void run_detect(const DetectOptions& o) {
     if (lc.size() != rc.size())
       throw UserError("left '" + o.left + "' is " + std::to_string(lc.cols) + "x" + std::to_string(lc.rows) + " but right '" +
                       o.right + "' is " + std::to_string(rc.cols) + "x" + std::to_string(rc.rows) + "; a rectified pair must match");
-    const Matcher matcher(cfg.matcher, load_fis_definition(""));
+    const Matcher matcher(detection_matcher_params(cfg.matcher), load_fis_definition(""));
     const MatchResult mr = matcher.match(to_core_gray(lc), to_core_gray(rc));
     disp = mr.disp_esr;  // the detector is tuned on the sparse ESR map, not the densified one
     mt = mr.timings;

@@ -276,7 +276,7 @@ void run_detect_eval(const EvalOptions& o) {
   const DetectParams dp = detect_params_from(cfg.values);
   const Detector detector(dp);
   std::unique_ptr<Matcher> matcher;
-  if (!o.oracle) matcher = std::make_unique<Matcher>(cfg.matcher, load_fis_definition(""));
+  if (!o.oracle) matcher = std::make_unique<Matcher>(detection_matcher_params(cfg.matcher), load_fis_definition(""));
   const bool use_cache = !o.oracle && !o.disparity_cache.empty();
   if (use_cache) check_cache_config(o.disparity_cache, config_to_toml(cfg.matcher));
   bool timed = !o.oracle;  // false once a frame's disparity came from the cache (no matcher timing)

@@ -9,8 +9,17 @@
 #include "fuzzystereo/calib.hpp"
 #include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/image.hpp"
+#include "fuzzystereo/params.hpp"
 
 namespace fs::app {
+
+// The matcher settings for a detection consumer (detect, detect-eval, the robot loop): the detector
+// is tuned on the sparse ESR map (MatchResult::disp_esr), so the densify stage, which only serves
+// the dense disparity output, is switched off there and costs nothing per frame.
+inline MatcherParams detection_matcher_params(MatcherParams p) {
+  p.densify.enabled = false;
+  return p;
+}
 
 // --calib FILE: JSON ({"focal_px", "baseline_m", "cx", "cy"[, "height_m", "pitch_deg"]}, at the top
 // level or under "calib" — a simulator sim_gt/*.json works as is), TOML (same fields), or a KITTI

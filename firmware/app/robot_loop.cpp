@@ -323,7 +323,7 @@ LoopResult RobotLoop::run() {
   robot::install_stop_signal_handlers();
 
   // ---- pipeline ----
-  const Matcher matcher(I.cfg.matcher, load_fis_definition(""));
+  const Matcher matcher(detection_matcher_params(I.cfg.matcher), load_fis_definition(""));
   const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);

@@ -26,7 +26,7 @@ def test_bench_on_the_builtin_pair_writes_table_and_json(firmware_bin, tmp_path)
     assert [run["threads"] for run in j["runs"]][0] == 1
     for run in j["runs"]:
         assert run["fuzzystereo_ms"] > 0 and run["sgbm_ms"] > 0 and run["bm_ms"] > 0
-        assert set(run["stages_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr"}
+        assert set(run["stages_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify"}
         assert run["ratio_fuzzystereo_sgbm"] > 0
 
 

@@ -102,7 +102,9 @@ TEST(Densify, SpecklesMatchUnionFindReference) {
       int diff = 0;
       for (std::size_t i = 0; i < d.data.size(); ++i) diff += d.data[i] != a.data[i];
       EXPECT_EQ(n, diff);
-      if (size == 40) EXPECT_GT(n, 0) << "test image has no speckle; the check would be empty";
+      if (size == 40) {
+        EXPECT_GT(n, 0) << "test image has no speckle; the check would be empty";
+      }
     }
   }
 }
