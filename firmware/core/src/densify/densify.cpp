@@ -16,40 +16,66 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
   if (max_size <= 0 || disp.empty()) return 0;
   // 4-connected components of valid pixels whose neighbours differ by <= max_diff_q4 (the rule of
   // OpenCV's filterSpeckles, which fs_core cannot call); components of <= max_size pixels go.
-  std::vector<std::int32_t> label(static_cast<std::size_t>(w) * h, -1);
-  std::vector<std::int32_t> stack, members;
-  stack.reserve(1024);
-  members.reserve(1024);
-  int count = 0;
-  for (int start = 0; start < w * h; ++start) {
-    if (label[start] >= 0 || disp.data[start] == kInvalidDisp) continue;
-    label[start] = start;
-    stack.assign(1, start);
-    members.clear();
-    while (!stack.empty()) {
-      const int p = stack.back();
-      stack.pop_back();
-      members.push_back(p);
-      const int x = p % w, y = p / w;
-      const int d = disp.data[p];
-      auto visit = [&](int q) {
-        if (label[q] >= 0) return;
-        const int dq = disp.data[q];
-        if (dq == kInvalidDisp || std::abs(dq - d) > max_diff_q4) return;
-        label[q] = start;
-        stack.push_back(q);
-      };
-      if (x > 0) visit(p - 1);
-      if (x + 1 < w) visit(p + 1);
-      if (y > 0) visit(p - w);
-      if (y + 1 < h) visit(p + w);
+  // Two passes on runs: a run is a maximal stretch of a row whose consecutive pixels connect; runs
+  // of consecutive rows join (union-find) where a pixel connects to the one above it.
+  struct SRun {
+    std::int32_t x0, x1;
+  };
+  std::vector<SRun> runs;
+  std::vector<std::int32_t> row_begin(std::size_t(h) + 1, 0), run_of(std::size_t(w) * std::size_t(h), -1);
+  for (int y = 0; y < h; ++y) {
+    const std::int16_t* d = disp.row(y);
+    std::int32_t* ro = run_of.data() + std::size_t(y) * std::size_t(w);
+    int x = 0;
+    while (x < w) {
+      if (d[x] == kInvalidDisp) { ++x; continue; }
+      int e = x + 1;
+      while (e < w && d[e] != kInvalidDisp && std::abs(d[e] - d[e - 1]) <= max_diff_q4) ++e;
+      const auto id = static_cast<std::int32_t>(runs.size());
+      runs.push_back({x, e});
+      std::fill(ro + x, ro + e, id);
+      x = e;
     }
-    if (static_cast<int>(members.size()) <= max_size) {
-      for (int p : members) {
-        disp.data[p] = kInvalidDisp;
-        if (removed) removed->data[p] = 1;
-        ++count;
-      }
+    row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
+  }
+  std::vector<std::int32_t> parent(runs.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<std::int32_t>(i);
+  auto find = [&](std::int32_t a) {
+    while (parent[std::size_t(a)] != a) {
+      parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
+      a = parent[std::size_t(a)];
+    }
+    return a;
+  };
+  for (int y = 1; y < h; ++y) {
+    const std::int16_t* d = disp.row(y);
+    const std::int16_t* u = disp.row(y - 1);
+    const std::int32_t* ro = run_of.data() + std::size_t(y) * std::size_t(w);
+    const std::int32_t* ru = ro - w;
+    std::int32_t last_a = -1, last_b = -1;  // the same pair of runs repeats along their overlap
+    for (int x = 0; x < w; ++x) {
+      if (ro[x] < 0 || ru[x] < 0 || std::abs(d[x] - u[x]) > max_diff_q4) continue;
+      if (ro[x] == last_a && ru[x] == last_b) continue;
+      last_a = ro[x];
+      last_b = ru[x];
+      const std::int32_t ra = find(ro[x]), rb = find(ru[x]);
+      if (ra != rb) parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
+    }
+  }
+  std::vector<std::int32_t> size(runs.size(), 0);
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    parent[i] = find(static_cast<std::int32_t>(i));
+    size[std::size_t(parent[i])] += runs[i].x1 - runs[i].x0;
+  }
+  int count = 0;
+  for (int y = 0; y < h; ++y) {
+    std::int16_t* d = disp.row(y);
+    for (std::int32_t i = row_begin[std::size_t(y)]; i < row_begin[std::size_t(y) + 1]; ++i) {
+      if (size[std::size_t(parent[std::size_t(i)])] > max_size) continue;
+      const SRun& r = runs[std::size_t(i)];
+      std::fill(d + r.x0, d + r.x1, kInvalidDisp);
+      if (removed) std::fill(removed->row(y) + r.x0, removed->row(y) + r.x1, std::uint8_t(1));
+      count += r.x1 - r.x0;
     }
   }
   return count;
@@ -103,50 +129,99 @@ void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out) {
   }
 }
 
+// One top-down row of a ray with dy = +1: o[x] = s[x] if valid, else the previous row's ray at
+// x - dx (kNone where that lies outside the image or on the first row).
+void ray_row_down(const std::int16_t* s, const std::int16_t* prev, int dx, int w, std::int16_t* o) {
+  if (!prev) {
+    for (int x = 0; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
+    return;
+  }
+  const int x_lo = std::max(0, dx), x_hi = std::min(w, w + dx);
+  for (int x = 0; x < x_lo; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
+  for (int x = x_lo; x < x_hi; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : prev[x - dx];
+  for (int x = x_hi; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
+}
+
 }  // namespace
 
+// The rays pointing up (dy = -1) are stored as planes from one bottom-up pass; the horizontal rays
+// and those pointing down are kept as row buffers during the top-down pass that fills. Per row, the
+// 8 ray values of the pixels without an estimate are gathered into 8 short arrays and sorted there
+// by the network (vectorised across pixels), so valid pixels cost nothing.
 ImageI16 median_fill(const ImageI16& disp, ImageU8* filled) {
   const int w = disp.width, h = disp.height;
   ImageI16 out = disp;
   if (filled) *filled = ImageU8(w, h, 0);
   if (disp.empty()) return out;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
-  std::vector<std::int16_t> rays(8 * n);
-  for (int k = 0; k < 8; ++k) scan_ray(disp, kDirs[k][0], kDirs[k][1], rays.data() + k * n);
-  std::vector<std::int16_t> sorted(8 * static_cast<std::size_t>(w));
+  const std::size_t n = static_cast<std::size_t>(w) * h, uw = static_cast<std::size_t>(w);
+  // kDirs 3, 6, 7 have dy = -1: computed bottom-up, whole planes.
+  std::vector<std::int16_t> up(3 * n);
+  scan_ray(disp, kDirs[3][0], kDirs[3][1], up.data());
+  scan_ray(disp, kDirs[6][0], kDirs[6][1], up.data() + n);
+  scan_ray(disp, kDirs[7][0], kDirs[7][1], up.data() + 2 * n);
+  // kDirs 2, 4, 5 have dy = +1: row buffers (current and previous row), plus the two horizontal.
+  std::vector<std::int16_t> down(6 * uw), horiz(2 * uw), c(8 * uw);
+  std::vector<std::int32_t> idx(uw);
   for (int y = 0; y < h; ++y) {
-    const std::size_t row = static_cast<std::size_t>(y) * w;
-    std::int16_t* c[8];
-    for (int k = 0; k < 8; ++k) {
-      c[k] = sorted.data() + static_cast<std::size_t>(k) * w;
-      std::copy_n(rays.data() + k * n + row, w, c[k]);
-    }
-    for (const auto& e : kSort8) {
-      std::int16_t* a = c[e[0]];
-      std::int16_t* b = c[e[1]];
-      for (int x = 0; x < w; ++x) {
-        const std::int16_t lo = std::min(a[x], b[x]), hi = std::max(a[x], b[x]);
-        a[x] = lo;
-        b[x] = hi;
-      }
-    }
-    const std::int16_t* from_left = rays.data() + row;
-    const std::int16_t* from_right = rays.data() + n + row;
     const std::int16_t* src = disp.row(y);
+    const int cur = y & 1;
+    for (int j = 0; j < 3; ++j) {
+      const int k = j == 0 ? 2 : (j == 1 ? 4 : 5);
+      std::int16_t* o = down.data() + (std::size_t(j) * 2 + std::size_t(cur)) * uw;
+      const std::int16_t* prev = y > 0 ? down.data() + (std::size_t(j) * 2 + std::size_t(1 - cur)) * uw : nullptr;
+      ray_row_down(src, prev, kDirs[std::size_t(k)][1], w, o);
+    }
+    std::int16_t* from_left = horiz.data();
+    std::int16_t* from_right = horiz.data() + uw;
+    std::int16_t prev = kNone;
+    for (int x = 0; x < w; ++x) from_left[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
+    prev = kNone;
+    for (int x = w - 1; x >= 0; --x) from_right[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
+    // Gather the pixels without an estimate (the left border band takes its own rule).
+    const std::size_t row = static_cast<std::size_t>(y) * uw;
     std::int16_t* o = out.row(y);
+    int m = 0;
     for (int x = 0; x < w; ++x) {
       if (src[x] != kInvalidDisp) continue;
-      std::int16_t v = kInvalidDisp;
       if (from_left[x] == kNone && from_right[x] != kNone) {
         // Left image border band (x < d): nothing to the left can match; extend the row's first
         // estimate, as the rays from above/below there cross unrelated, farther structure.
-        v = from_right[x];
-      } else {
-        int m = 0;
-        while (m < 8 && c[m][x] != kNone) ++m;
-        if (m > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
-          v = (m & 1) ? c[m / 2][x] : static_cast<std::int16_t>((c[m / 2 - 1][x] + c[m / 2][x] + 1) >> 1);
+        o[x] = from_right[x];
+        if (filled) filled->at(x, y) = 1;
+        continue;
       }
+      idx[std::size_t(m++)] = x;
+    }
+    if (m == 0) continue;
+    const std::int16_t* planes[8] = {from_left,
+                                     from_right,
+                                     down.data() + (0 * 2 + std::size_t(cur)) * uw,
+                                     up.data() + row,
+                                     down.data() + (1 * 2 + std::size_t(cur)) * uw,
+                                     down.data() + (2 * 2 + std::size_t(cur)) * uw,
+                                     up.data() + n + row,
+                                     up.data() + 2 * n + row};
+    std::int16_t* cc[8];
+    for (int k = 0; k < 8; ++k) {
+      cc[k] = c.data() + std::size_t(k) * uw;
+      for (int i = 0; i < m; ++i) cc[k][i] = planes[k][idx[std::size_t(i)]];
+    }
+    for (const auto& e : kSort8) {
+      std::int16_t* a = cc[e[0]];
+      std::int16_t* b = cc[e[1]];
+      for (int i = 0; i < m; ++i) {
+        const std::int16_t lo = std::min(a[i], b[i]), hi = std::max(a[i], b[i]);
+        a[i] = lo;
+        b[i] = hi;
+      }
+    }
+    for (int i = 0; i < m; ++i) {
+      int cnt = 0;
+      while (cnt < 8 && cc[cnt][i] != kNone) ++cnt;
+      std::int16_t v = kInvalidDisp;
+      if (cnt > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
+        v = (cnt & 1) ? cc[cnt / 2][i] : static_cast<std::int16_t>((cc[cnt / 2 - 1][i] + cc[cnt / 2][i] + 1) >> 1);
+      const int x = idx[std::size_t(i)];
       o[x] = v;
       if (filled && v != kInvalidDisp) filled->at(x, y) = 1;
     }
