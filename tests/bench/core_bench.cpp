@@ -124,6 +124,14 @@ void BM_BlockEntropy(benchmark::State& st) {
 }
 BENCHMARK(BM_BlockEntropy)->Unit(benchmark::kMillisecond);
 
+void BM_Densify(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st) benchmark::DoNotOptimize(fs::densify(r.disp_esr, p.densify, nullptr));
+}
+BENCHMARK(BM_Densify)->Unit(benchmark::kMillisecond);
+
 void BM_Matcher(benchmark::State& st) {
   const fs::Matcher m(params(), fs::load_fis_definition(""));
   for (auto _ : st) benchmark::DoNotOptimize(m.match(pair().left, pair().right));
