@@ -162,3 +162,25 @@ def test_occluded_obstacle_merges_across_nearer_one():
     comp2 = comp.copy()
     comp2[20:30, 90:120] = 0  # right piece starts 10 rows lower: another obstacle
     assert len(set(refdet.merge_occluded(comp2, d, 3, roots, 8, 0.1, 200, 10)[1:].tolist())) == 3
+
+
+def test_contained_groups_join_or_drop():
+    # As tests/cpp/core/test_detect_scene.cpp ContainedGroupsJoinOrDrop: an obstacle at 20 px with a
+    # 15 %-nearer piece (200 px), a nearer 100-px blob and a farther 100-px blob inside its box.
+    comp = np.zeros((100, 120), np.int64)
+    d = np.full((100, 120), np.nan)
+    for (x0, x1, y0, y1, lab, v) in [(20, 79, 20, 79, 1, 20.0), (30, 39, 30, 49, 2, 23.0),
+                                     (50, 59, 30, 39, 3, 40.0), (50, 59, 60, 69, 4, 12.0)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = v
+    roots = np.arange(5)
+    r = refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 150, False, 10)
+    assert r[1:].tolist() == [1, 1, 0, 0]  # piece joined, both blobs dropped
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 150, True, 10)[1:].tolist() == [1, 1, 0, 4]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 100, False, 10)[1:].tolist() == [1, 1, 3, 4]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.1, 150, False, 10)[1:].tolist() == [1, 2, 0, 0]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.0, 0.2, 150, False, 10)[1:].tolist() == [1, 2, 3, 4]
+    comp2, d2 = comp.copy(), d.copy()
+    comp2[30:50, 30:40], d2[30:50, 30:40] = 1, 20.0
+    comp2[10:30, 30:40], d2[10:30, 30:40] = 2, 23.0  # half above the obstacle's box: not contained
+    assert refdet.resolve_contained(comp2, d2, 4, roots, 0.8, 0.2, 150, False, 10)[1:].tolist() == [1, 2, 0, 0]

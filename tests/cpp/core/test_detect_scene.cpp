@@ -334,6 +334,63 @@ TEST(DetectScene, OccludedObstacleMergesAcrossNearerOne) {
   EXPECT_EQ(detect::measure_obstacles(comp3, 3, disp, calib, p, nullptr).size(), 3u);
 }
 
+TEST(DetectScene, ContainedGroupsJoinOrDrop) {
+  // A 60x60 obstacle at d = 20 px with three smaller groups inside its box: a leftover piece at
+  // d = 23 px (15 % nearer: beyond the 10 % fragment merging, within contain_merge_rel_disparity),
+  // a 100-px blob at d = 40 px (matcher noise, nearer) and a 100-px blob at d = 12 px (farther).
+  ImageI32 comp(120, 100, 0);
+  ImageI16 disp(120, 100, kInvalidDisp);
+  auto fill = [&](int x0, int x1, int y0, int y1, int label, int q4) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) comp.at(x, y) = label, disp.at(x, y) = std::int16_t(q4);
+  };
+  fill(20, 79, 20, 79, 1, 320);
+  fill(30, 39, 30, 49, 2, 368);   // 200 px, 15 % nearer than the obstacle
+  fill(50, 59, 30, 39, 3, 640);   // 100 px, twice as near
+  fill(50, 59, 60, 69, 4, 192);   // 100 px, farther
+  // The pieces overwrite the obstacle's labels: it keeps 3600 - 400 pixels of its own.
+  const StereoCalib calib{200.0, 60.0, 50.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.merge_gap_px = -1;  // no fragment merging: only the contained rule acts
+  p.contain_min_inside = 0.8;
+  p.contain_merge_rel_disparity = 0.2;
+  p.contain_drop_max_px = 150;
+  p.contain_drop_nearer_only = false;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 4, disp, calib, p, &labels);
+  ASSERT_EQ(o.size(), 1u);  // the piece joined, both blobs dropped
+  EXPECT_EQ(o[0].pixel_count, 3600 - 200);
+  EXPECT_EQ(o[0].disparity_q4, 320);
+  EXPECT_EQ(labels.at(35, 40), 1);  // the joined piece carries the obstacle's id
+  EXPECT_EQ(labels.at(55, 35), 0);  // the dropped blob none
+  p.contain_drop_nearer_only = true;  // the farther blob stays
+  o = detect::measure_obstacles(comp, 4, disp, calib, p, nullptr);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[1].disparity_q4, 192);
+  p.contain_drop_nearer_only = false;
+  p.contain_drop_max_px = 100;  // blobs of 100 px are not smaller than 100: kept
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 3u);
+  p.contain_drop_max_px = 150;
+  p.contain_merge_rel_disparity = 0.1;  // the 15 % piece is now at another depth, 200 px >= 150: kept
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 2u);
+  p.contain_merge_rel_disparity = 0.2;
+  p.contain_min_inside = 0.0;  // off: four obstacles
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+  // A piece only half inside the obstacle's box is not contained.
+  ImageI32 comp2 = comp;
+  ImageI16 disp2 = disp;
+  for (int y = 30; y <= 49; ++y)
+    for (int x = 30; x <= 39; ++x) comp2.at(x, y) = 1, disp2.at(x, y) = 320;
+  for (int y = 10; y <= 29; ++y)
+    for (int x = 30; x <= 39; ++x) comp2.at(x, y) = 2, disp2.at(x, y) = 368;  // rows 10..29: half above the box
+  p.contain_min_inside = 0.8;
+  o = detect::measure_obstacles(comp2, 4, disp2, calib, p, nullptr);
+  EXPECT_EQ(o.size(), 2u);  // obstacle + the half-outside piece (blobs dropped)
+}
+
 TEST(DetectScene, TwoDepthsJoinedByARampAreSplit) {
   // Two obstacles at d = 20 px and d = 14 px (30 %) touching in the image, joined into one
   // component by a 2-column ramp (as the matcher smooths a depth edge): the split separates them.
