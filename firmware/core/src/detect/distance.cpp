@@ -86,6 +86,54 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     }
   };
   absorb();
+  // Edge continuity (our addition, session 5, docs/detection.md "(e) Edge continuity"): two groups side
+  // by side (horizontal gap <= max(merge_gap_px, 0), boxes may overlap by up to merge_edge_columns
+  // columns, rows overlapping by >= half the lower box) whose facing edges have the same disparity (lower
+  // medians of the pixels in the merge_edge_columns outermost columns of each, within
+  // merge_edge_rel_disparity of the larger) are one slanted surface cut where two k-means clusters meet
+  // (the u-disparity filter of each cluster loses the columns at the boundary); their overall medians
+  // differ by more than fragment merging allows.
+  if (p.merge_edge_rel_disparity > 0 && p.merge_edge_columns > 0) {
+    const int k = p.merge_edge_columns;
+    std::vector<std::vector<std::int16_t>> left(std::size_t(count) + 1), right(std::size_t(count) + 1);
+    for (int y = 0; y < components.height; ++y) {
+      const std::int32_t* l = components.row(y);
+      const std::int16_t* d = disp.row(y);
+      for (int x = 0; x < components.width; ++x) {
+        if (l[x] == 0) continue;
+        const int g = root[std::size_t(l[x])];
+        const Acc& a = acc[std::size_t(g)];
+        if (x < a.x0 + k) left[std::size_t(g)].push_back(d[x]);
+        if (x > a.x1 - k) right[std::size_t(g)].push_back(d[x]);
+      }
+    }
+    auto lower_median = [](std::vector<std::int16_t>& v) {
+      const std::size_t mid = (v.size() - 1) / 2;
+      std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+      return int(v[mid]);
+    };
+    std::vector<int> lm(std::size_t(count) + 1, 0), rm(std::size_t(count) + 1, 0);
+    for (int c = 1; c <= count; ++c)
+      if (acc[std::size_t(c)].n > 0) lm[std::size_t(c)] = lower_median(left[std::size_t(c)]), rm[std::size_t(c)] = lower_median(right[std::size_t(c)]);
+    const int g = std::max(p.merge_gap_px, 0);
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a = acc[std::size_t(c1)];
+      if (a.n == 0) continue;
+      for (int c2 = 1; c2 <= count; ++c2) {
+        const Acc& b = acc[std::size_t(c2)];
+        if (c2 == c1 || b.n == 0 || b.x1 <= a.x1) continue;  // b ends right of a
+        const int gap = b.x0 - a.x1 - 1;
+        if (gap > g || gap < -k) continue;
+        const int ov = std::min(a.y1, b.y1) - std::max(a.y0, b.y0) + 1;
+        if (2 * ov < std::min(a.y1 - a.y0 + 1, b.y1 - b.y0 + 1)) continue;
+        const int e1 = rm[std::size_t(c1)], e2 = lm[std::size_t(c2)];
+        if (std::abs(e1 - e2) > p.merge_edge_rel_disparity * std::max(e1, e2)) continue;
+        const int r1 = find(c1), r2 = find(c2);
+        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      }
+    }
+    absorb();
+  }
   // Occlusion merging (our addition, docs/detection.md "(e)"): two merged groups at the same depth
   // (medians within merge_max_rel_disparity), with the same top and bottom rows (within 1/20 of the
   // taller height + 2 px), whose horizontal gap (more than merge_gap_px, at most
@@ -170,7 +218,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     // or above and below within its columns (a hole filled by the piece), not only on one side (an
     // obstacle beside or in front of the host's edge, inside its box only because boxes are rectangles).
     std::vector<std::int32_t> group;
-    if (p.contain_surrounded) {
+    if (p.contain_surround != ContainSurround::Off) {
       group.assign(components.size(), 0);
       for (std::size_t i = 0; i < components.size(); ++i)
         if (components.data[i] > 0) group[i] = root[std::size_t(components.data[i])];
@@ -185,12 +233,12 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     for (int c1 = 1; c1 <= count; ++c1) {
       const int c2 = host[std::size_t(c1)];
       if (c2 == 0) continue;
-      if (p.contain_surrounded) {
+      if (p.contain_surround != ContainSurround::Off) {
         const Acc& a = acc[std::size_t(c1)];
         const Acc& b = acc[std::size_t(c2)];
         const bool lr = any_of(c2, b.x0, a.y0, a.x0 - 1, a.y1) && any_of(c2, a.x1 + 1, a.y0, b.x1, a.y1);
-        const bool ud = lr || (any_of(c2, a.x0, b.y0, a.x1, a.y0 - 1) && any_of(c2, a.x0, a.y1 + 1, a.x1, b.y1));
-        if (!ud) continue;
+        const bool ud = any_of(c2, a.x0, b.y0, a.x1, a.y0 - 1) && any_of(c2, a.x0, a.y1 + 1, a.x1, b.y1);
+        if (p.contain_surround == ContainSurround::All ? !(lr && ud) : !(lr || ud)) continue;
       }
       const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
       if (std::abs(m1 - m2) <= p.contain_merge_rel_disparity * std::max(m1, m2)) {
@@ -215,6 +263,8 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     o.x0 = a.x0, o.y0 = a.y0, o.x1 = a.x1, o.y1 = a.y1, o.pixel_count = a.n;
     o.disparity_q4 = std::max<int>(1, a.d[mid]);  // d = 0 would be at infinity; clamp to 1/16 px
     o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
+    // Range (our addition, session 5): farther than max_distance_m is background, not an obstacle.
+    if (p.max_distance_m > 0 && o.distance_m > p.max_distance_m) continue;
     // Physical size: an obstacle lower than min_height_m (box rows * Z / f) is road or matcher noise.
     if (double(o.y1 - o.y0 + 1) * o.distance_m / calib.focal_px < p.min_height_m) continue;
     // Physical area (our addition, docs/detection.md "(e)"): the pixels cover n * (Z/f)^2 m^2.
