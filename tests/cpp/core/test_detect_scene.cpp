@@ -275,8 +275,11 @@ TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
   p.min_height_m = 0.0;  // and the strip stays
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
   p.merge_gap_px = 8;
-  p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again
+  p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again ...
+  p.merge_edge_rel_disparity = 0.0;  // ... unless edge continuity (3 % <= 5 %) joins the facing edges
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+  p.merge_edge_rel_disparity = 0.05;
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 2u);
 }
 
 TEST(DetectScene, PhysicalAreaDropsSmallSurfacesAtTheirDepth) {
