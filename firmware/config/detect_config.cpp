@@ -53,6 +53,15 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.cc_min_step_px = v.num("detect.cc_min_step_px");
   p.min_area_px = v.integer("detect.min_area_px");
   p.merge_occluded_max_gap_px = v.integer("detect.merge_occluded_max_gap_px");
+  p.merge_edge_rel_disparity = v.num("detect.merge_edge_rel_disparity");
+  p.merge_edge_columns = v.integer("detect.merge_edge_columns");
+  p.contain_min_inside = v.num("detect.contain_min_inside");
+  p.contain_merge_rel_disparity = v.num("detect.contain_merge_rel_disparity");
+  p.contain_drop_max_px = v.integer("detect.contain_drop_max_px");
+  p.contain_drop_nearer_only = v.flag("detect.contain_drop_nearer_only");
+  const std::string surround = v.str("detect.contain_surround");
+  p.contain_surround = surround == "off" ? ContainSurround::Off : surround == "all" ? ContainSurround::All : ContainSurround::Opposite;
+  p.max_distance_m = v.num("detect.max_distance_m");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");

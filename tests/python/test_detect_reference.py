@@ -162,3 +162,51 @@ def test_occluded_obstacle_merges_across_nearer_one():
     comp2 = comp.copy()
     comp2[20:30, 90:120] = 0  # right piece starts 10 rows lower: another obstacle
     assert len(set(refdet.merge_occluded(comp2, d, 3, roots, 8, 0.1, 200, 10)[1:].tolist())) == 3
+
+
+def test_contained_groups_join_or_drop():
+    # As tests/cpp/core/test_detect_scene.cpp ContainedGroupsJoinOrDrop: an obstacle at 20 px with a
+    # 15 %-nearer piece (200 px), a nearer 100-px blob and a farther 100-px blob inside its box.
+    comp = np.zeros((100, 120), np.int64)
+    d = np.full((100, 120), np.nan)
+    for (x0, x1, y0, y1, lab, v) in [(20, 79, 20, 79, 1, 20.0), (30, 39, 30, 49, 2, 23.0),
+                                     (50, 59, 30, 39, 3, 40.0), (50, 59, 60, 69, 4, 12.0)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = v
+    roots = np.arange(5)
+    r = refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 150, False, 10)
+    assert r[1:].tolist() == [1, 1, 0, 0]  # piece joined, both blobs dropped
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 150, True, 10)[1:].tolist() == [1, 1, 0, 4]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.2, 100, False, 10)[1:].tolist() == [1, 1, 3, 4]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.8, 0.1, 150, False, 10)[1:].tolist() == [1, 2, 0, 0]
+    assert refdet.resolve_contained(comp, d, 4, roots, 0.0, 0.2, 150, False, 10)[1:].tolist() == [1, 2, 3, 4]
+    comp2, d2 = comp.copy(), d.copy()
+    comp2[30:50, 30:40], d2[30:50, 30:40] = 1, 20.0
+    comp2[10:30, 30:40], d2[10:30, 30:40] = 2, 23.0  # half above the obstacle's box: not contained
+    assert refdet.resolve_contained(comp2, d2, 4, roots, 0.8, 0.2, 150, False, 10)[1:].tolist() == [1, 2, 0, 0]
+    # A blob in the obstacle's corner (obstacle pixels only left of and above it) is not surrounded.
+    comp3, d3 = comp.copy(), d.copy()
+    comp3[70:80, 70:80], d3[70:80, 70:80] = 3, 40.0
+    comp3[30:40, 50:60], d3[30:40, 50:60] = 1, 20.0
+    assert refdet.resolve_contained(comp3, d3, 4, roots, 0.8, 0.2, 150, False, 10)[1:].tolist() == [1, 1, 3, 0]
+    assert refdet.resolve_contained(comp3, d3, 4, roots, 0.8, 0.2, 150, False, 10, "off")[1:].tolist() == [1, 1, 0, 0]
+
+
+def test_edge_continuity_joins_a_slanted_surface():
+    # A surface slanting from d = 30 px (left) to 24 px (right), cut into two pieces 2 px apart (as where
+    # two k-means clusters meet): medians 28.5 / 25.5 px (11 %) but the facing edges agree. A flat obstacle
+    # at 21 px beside the near end of another surface (edges 30 vs 21) stays apart.
+    comp = np.zeros((60, 200), np.int64)
+    d = np.full((60, 200), np.nan)
+    ramp = np.linspace(30.0, 24.0, 62)
+    comp[10:50, 10:40], comp[10:50, 42:72] = 1, 2
+    d[10:50, 10:72] = ramp[None, :]
+    d[10:50, 40:42] = np.nan
+    comp[10:50, 100:130], d[10:50, 100:130] = 3, 30.0
+    comp[10:50, 132:160], d[10:50, 132:160] = 4, 21.0
+    roots = np.arange(5)
+    r = refdet.merge_edges(comp, d, 4, roots, 8, 0.05, 4)
+    assert r[1:].tolist() == [1, 1, 3, 4]
+    assert refdet.merge_edges(comp, d, 4, roots, 8, 0.0, 4)[1:].tolist() == [1, 2, 3, 4]  # off
+    assert refdet.merge_edges(comp, d, 4, roots, 1, 0.05, 4)[1:].tolist() == [1, 2, 3, 4]  # gap 2 > 1
+    assert refdet.merge_edges(comp, d, 4, roots, 8, 0.05, 30)[1:].tolist() == [1, 2, 3, 4]  # whole pieces: 11 %

@@ -197,6 +197,14 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(p.split_min_px, d.split_min_px);
   EXPECT_EQ(p.split_rounds, d.split_rounds);
   EXPECT_EQ(p.merge_occluded_max_gap_px, d.merge_occluded_max_gap_px);
+  EXPECT_DOUBLE_EQ(p.merge_edge_rel_disparity, d.merge_edge_rel_disparity);
+  EXPECT_EQ(p.merge_edge_columns, d.merge_edge_columns);
+  EXPECT_DOUBLE_EQ(p.contain_min_inside, d.contain_min_inside);
+  EXPECT_DOUBLE_EQ(p.contain_merge_rel_disparity, d.contain_merge_rel_disparity);
+  EXPECT_EQ(p.contain_drop_max_px, d.contain_drop_max_px);
+  EXPECT_EQ(p.contain_drop_nearer_only, d.contain_drop_nearer_only);
+  EXPECT_EQ(p.contain_surround, d.contain_surround);
+  EXPECT_DOUBLE_EQ(p.max_distance_m, d.max_distance_m);
   EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
   EXPECT_DOUBLE_EQ(p.far_m, d.far_m);
   for (std::size_t i = 0; i < 3; ++i) {
@@ -267,8 +275,11 @@ TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
   p.min_height_m = 0.0;  // and the strip stays
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
   p.merge_gap_px = 8;
-  p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again
+  p.merge_max_rel_disparity = 0.02;  // 320 vs 330 differ by 3 %: apart again ...
+  p.merge_edge_rel_disparity = 0.0;  // ... unless edge continuity (3 % <= 5 %) joins the facing edges
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 3u);
+  p.merge_edge_rel_disparity = 0.05;
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 2u);
 }
 
 TEST(DetectScene, PhysicalAreaDropsSmallSurfacesAtTheirDepth) {
@@ -332,6 +343,116 @@ TEST(DetectScene, OccludedObstacleMergesAcrossNearerOne) {
   for (int y = 5; y <= 75; ++y)
     for (int x = 40; x <= 59; ++x) comp3.at(x, y) = 0;  // nearer box covers only 60..89: 20 columns open
   EXPECT_EQ(detect::measure_obstacles(comp3, 3, disp, calib, p, nullptr).size(), 3u);
+}
+
+TEST(DetectScene, EdgeContinuityJoinsASlantedSurface) {
+  // As tests/python/test_detect_reference.py: a surface slanting from d = 30 px to 24 px over columns
+  // 10..71, cut into two pieces 2 px apart (columns 40-41 empty, as where two k-means clusters meet):
+  // medians ~28.5 / 25.5 px (11 %, beyond fragment merging) but the facing edges agree. A flat piece at
+  // 30 px and one at 21 px side by side (edges 30 vs 21) stay apart.
+  ImageI32 comp(200, 60, 0);
+  ImageI16 disp(200, 60, kInvalidDisp);
+  for (int y = 10; y < 50; ++y) {
+    for (int x = 10; x < 72; ++x) {
+      if (x == 40 || x == 41) continue;
+      comp.at(x, y) = x < 40 ? 1 : 2;
+      disp.at(x, y) = std::int16_t(std::lround(16.0 * (30.0 - 6.0 * (x - 10) / 61.0)));
+    }
+    for (int x = 100; x < 130; ++x) comp.at(x, y) = 3, disp.at(x, y) = 480;
+    for (int x = 132; x < 160; ++x) comp.at(x, y) = 4, disp.at(x, y) = 336;
+  }
+  const StereoCalib calib{200.0, 100.0, 30.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.contain_min_inside = 0.0;
+  p.merge_gap_px = 8;
+  p.merge_edge_rel_disparity = 0.05;
+  p.merge_edge_columns = 4;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 4, disp, calib, p, &labels);
+  ASSERT_EQ(o.size(), 3u);
+  EXPECT_EQ(labels.at(20, 20), labels.at(60, 20));  // the slanted surface is one obstacle
+  EXPECT_NE(labels.at(110, 20), labels.at(140, 20));
+  p.merge_edge_rel_disparity = 0.0;  // off
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+  p.merge_edge_rel_disparity = 0.05;
+  p.merge_gap_px = 1;  // the 2-px gap is wider
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+  p.merge_gap_px = 8;
+  p.merge_edge_columns = 30;  // the whole pieces: 11 % apart
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+}
+
+TEST(DetectScene, ContainedGroupsJoinOrDrop) {
+  // A 60x60 obstacle at d = 20 px with three smaller groups inside its box: a leftover piece at
+  // d = 23 px (15 % nearer: beyond the 10 % fragment merging, within contain_merge_rel_disparity),
+  // a 100-px blob at d = 40 px (matcher noise, nearer) and a 100-px blob at d = 12 px (farther).
+  ImageI32 comp(120, 100, 0);
+  ImageI16 disp(120, 100, kInvalidDisp);
+  auto fill = [&](int x0, int x1, int y0, int y1, int label, int q4) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) comp.at(x, y) = label, disp.at(x, y) = std::int16_t(q4);
+  };
+  fill(20, 79, 20, 79, 1, 320);
+  fill(30, 39, 30, 49, 2, 368);   // 200 px, 15 % nearer than the obstacle
+  fill(50, 59, 30, 39, 3, 640);   // 100 px, twice as near
+  fill(50, 59, 60, 69, 4, 192);   // 100 px, farther
+  // The pieces overwrite the obstacle's labels: it keeps 3600 - 400 pixels of its own.
+  const StereoCalib calib{200.0, 60.0, 50.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.merge_gap_px = -1;  // no fragment merging: only the contained rule acts
+  p.contain_min_inside = 0.8;
+  p.contain_merge_rel_disparity = 0.2;
+  p.contain_drop_max_px = 150;
+  p.contain_drop_nearer_only = false;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 4, disp, calib, p, &labels);
+  ASSERT_EQ(o.size(), 1u);  // the piece joined, both blobs dropped
+  EXPECT_EQ(o[0].pixel_count, 3600 - 200);
+  EXPECT_EQ(o[0].disparity_q4, 320);
+  EXPECT_EQ(labels.at(35, 40), 1);  // the joined piece carries the obstacle's id
+  EXPECT_EQ(labels.at(55, 35), 0);  // the dropped blob none
+  p.contain_drop_nearer_only = true;  // the farther blob stays
+  o = detect::measure_obstacles(comp, 4, disp, calib, p, nullptr);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[1].disparity_q4, 192);
+  p.contain_drop_nearer_only = false;
+  p.contain_drop_max_px = 100;  // blobs of 100 px are not smaller than 100: kept
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 3u);
+  p.contain_drop_max_px = 150;
+  p.contain_merge_rel_disparity = 0.1;  // the 15 % piece is now at another depth, 200 px >= 150: kept
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 2u);
+  p.contain_merge_rel_disparity = 0.2;
+  p.contain_min_inside = 0.0;  // off: four obstacles
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+  // A piece only half inside the obstacle's box is not contained.
+  ImageI32 comp2 = comp;
+  ImageI16 disp2 = disp;
+  for (int y = 30; y <= 49; ++y)
+    for (int x = 30; x <= 39; ++x) comp2.at(x, y) = 1, disp2.at(x, y) = 320;
+  for (int y = 10; y <= 29; ++y)
+    for (int x = 30; x <= 39; ++x) comp2.at(x, y) = 2, disp2.at(x, y) = 368;  // rows 10..29: half above the box
+  p.contain_min_inside = 0.8;
+  o = detect::measure_obstacles(comp2, 4, disp2, calib, p, nullptr);
+  EXPECT_EQ(o.size(), 2u);  // obstacle + the half-outside piece (blobs dropped)
+  // A blob in the obstacle's corner (obstacle pixels only left of and above it) is not surrounded.
+  ImageI32 comp3 = comp;
+  ImageI16 disp3 = disp;
+  for (int y = 30; y <= 39; ++y)
+    for (int x = 50; x <= 59; ++x) comp3.at(x, y) = 1, disp3.at(x, y) = 320;
+  for (int y = 70; y <= 79; ++y)
+    for (int x = 70; x <= 79; ++x) comp3.at(x, y) = 3, disp3.at(x, y) = 640;
+  p.contain_surround = ContainSurround::Opposite;
+  o = detect::measure_obstacles(comp3, 4, disp3, calib, p, nullptr);
+  ASSERT_EQ(o.size(), 2u);  // obstacle + the corner blob (the farther blob 4 is still dropped)
+  EXPECT_EQ(o[0].disparity_q4, 640);
+  p.contain_surround = ContainSurround::Off;
+  EXPECT_EQ(detect::measure_obstacles(comp3, 4, disp3, calib, p, nullptr).size(), 1u);
 }
 
 TEST(DetectScene, TwoDepthsJoinedByARampAreSplit) {

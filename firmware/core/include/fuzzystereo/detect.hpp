@@ -32,6 +32,10 @@ struct HsvRange {
 };
 
 enum class SkyLimit { Horizon, Fraction };
+// Contained groups (measure_obstacles): where the larger group must have pixels around the smaller one.
+// Off: box containment alone; Opposite: left and right (within its rows) or above and below (within its
+// columns); All: on all four sides.
+enum class ContainSurround { Off, Opposite, All };
 
 // Defaults mirror the [detect] section of common/config/default.toml (ranges in schema.toml).
 struct DetectParams {
@@ -82,6 +86,15 @@ struct DetectParams {
   double split_max_valley = 0.1;   // ... when at most this share of its pixels lies between the modes
   int split_min_px = 100;          // ... and each side has at least this many pixels
   int split_rounds = 2;            // splitting passes (a component over three depths needs two)
+  double merge_edge_rel_disparity = 0.05;  // side-by-side groups whose facing edges' disparities differ <= this
+                                       // share join (a slanted surface cut by k-means; 0 = off)
+  int merge_edge_columns = 4;      // ... the edge = this many outermost columns of each group [px]
+  double contain_min_inside = 0.6; // a group whose box lies this share inside a larger group's box (0 = off) ...
+  double contain_merge_rel_disparity = 0.12; // ... joins it when the medians differ <= this share of the larger
+  int contain_drop_max_px = 300;   // ... otherwise is dropped when smaller than this (0 = never dropped)
+  bool contain_drop_nearer_only = false;  // ... and only when nearer than the containing group
+  ContainSurround contain_surround = ContainSurround::Opposite;  // where the larger group must have pixels
+  double max_distance_m = 20.0;    // obstacles farther than this are dropped (0 = off) [m]
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)

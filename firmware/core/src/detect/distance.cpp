@@ -86,6 +86,54 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     }
   };
   absorb();
+  // Edge continuity (our addition, session 5, docs/detection.md "(e) Edge continuity"): two groups side
+  // by side (horizontal gap <= max(merge_gap_px, 0), boxes may overlap by up to merge_edge_columns
+  // columns, rows overlapping by >= half the lower box) whose facing edges have the same disparity (lower
+  // medians of the pixels in the merge_edge_columns outermost columns of each, within
+  // merge_edge_rel_disparity of the larger) are one slanted surface cut where two k-means clusters meet
+  // (the u-disparity filter of each cluster loses the columns at the boundary); their overall medians
+  // differ by more than fragment merging allows.
+  if (p.merge_edge_rel_disparity > 0 && p.merge_edge_columns > 0) {
+    const int k = p.merge_edge_columns;
+    std::vector<std::vector<std::int16_t>> left(std::size_t(count) + 1), right(std::size_t(count) + 1);
+    for (int y = 0; y < components.height; ++y) {
+      const std::int32_t* l = components.row(y);
+      const std::int16_t* d = disp.row(y);
+      for (int x = 0; x < components.width; ++x) {
+        if (l[x] == 0) continue;
+        const int g = root[std::size_t(l[x])];
+        const Acc& a = acc[std::size_t(g)];
+        if (x < a.x0 + k) left[std::size_t(g)].push_back(d[x]);
+        if (x > a.x1 - k) right[std::size_t(g)].push_back(d[x]);
+      }
+    }
+    auto lower_median = [](std::vector<std::int16_t>& v) {
+      const std::size_t mid = (v.size() - 1) / 2;
+      std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+      return int(v[mid]);
+    };
+    std::vector<int> lm(std::size_t(count) + 1, 0), rm(std::size_t(count) + 1, 0);
+    for (int c = 1; c <= count; ++c)
+      if (acc[std::size_t(c)].n > 0) lm[std::size_t(c)] = lower_median(left[std::size_t(c)]), rm[std::size_t(c)] = lower_median(right[std::size_t(c)]);
+    const int g = std::max(p.merge_gap_px, 0);
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a = acc[std::size_t(c1)];
+      if (a.n == 0) continue;
+      for (int c2 = 1; c2 <= count; ++c2) {
+        const Acc& b = acc[std::size_t(c2)];
+        if (c2 == c1 || b.n == 0 || b.x1 <= a.x1) continue;  // b ends right of a
+        const int gap = b.x0 - a.x1 - 1;
+        if (gap > g || gap < -k) continue;
+        const int ov = std::min(a.y1, b.y1) - std::max(a.y0, b.y0) + 1;
+        if (2 * ov < std::min(a.y1 - a.y0 + 1, b.y1 - b.y0 + 1)) continue;
+        const int e1 = rm[std::size_t(c1)], e2 = lm[std::size_t(c2)];
+        if (std::abs(e1 - e2) > p.merge_edge_rel_disparity * std::max(e1, e2)) continue;
+        const int r1 = find(c1), r2 = find(c2);
+        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      }
+    }
+    absorb();
+  }
   // Occlusion merging (our addition, docs/detection.md "(e)"): two merged groups at the same depth
   // (medians within merge_max_rel_disparity), with the same top and bottom rows (within 1/20 of the
   // taller height + 2 px), whose horizontal gap (more than merge_gap_px, at most
@@ -134,6 +182,75 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     }
     absorb();
   }
+  // Contained groups (our addition, session 5, docs/detection.md "(e) Contained groups"): a group
+  // whose box lies >= contain_min_inside inside the box of a larger group (more pixels, >= min_area_px)
+  // is either a leftover piece of that obstacle (medians within contain_merge_rel_disparity of the
+  // larger: absorbed) or, when it has fewer than contain_drop_max_px pixels, a wrong-depth blob of the
+  // matcher inside it (dropped; with contain_drop_nearer_only only when it is nearer than the host).
+  // The host is the containing group with the most pixels (ties: lowest label). All decisions are
+  // taken on the groups as they are before this pass (no chains of decisions within the pass).
+  if (p.contain_min_inside > 0) {
+    for (int c = 1; c <= count; ++c) {
+      Acc& a = acc[std::size_t(c)];
+      if (a.n == 0) continue;
+      const std::size_t mid = (a.d.size() - 1) / 2;  // lower median
+      std::nth_element(a.d.begin(), a.d.begin() + std::ptrdiff_t(mid), a.d.end());
+      med[std::size_t(c)] = a.d[mid];
+    }
+    std::vector<int> host(std::size_t(count) + 1, 0);
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a = acc[std::size_t(c1)];
+      if (a.n == 0) continue;
+      const std::int64_t area = std::int64_t(a.x1 - a.x0 + 1) * (a.y1 - a.y0 + 1);
+      int best = 0;
+      for (int c2 = 1; c2 <= count; ++c2) {
+        const Acc& b = acc[std::size_t(c2)];
+        if (c2 == c1 || b.n <= a.n || b.n < p.min_area_px) continue;
+        if (best != 0 && b.n <= acc[std::size_t(best)].n) continue;
+        const std::int64_t iw = std::min(a.x1, b.x1) - std::max(a.x0, b.x0) + 1;
+        const std::int64_t ih = std::min(a.y1, b.y1) - std::max(a.y0, b.y0) + 1;
+        if (iw <= 0 || ih <= 0 || double(iw * ih) < p.contain_min_inside * double(area)) continue;
+        best = c2;
+      }
+      host[std::size_t(c1)] = best;
+    }
+    // Surrounded: the host has pixels on both sides of the group's box, left and right within its rows
+    // or above and below within its columns (a hole filled by the piece), not only on one side (an
+    // obstacle beside or in front of the host's edge, inside its box only because boxes are rectangles).
+    std::vector<std::int32_t> group;
+    if (p.contain_surround != ContainSurround::Off) {
+      group.assign(components.size(), 0);
+      for (std::size_t i = 0; i < components.size(); ++i)
+        if (components.data[i] > 0) group[i] = root[std::size_t(components.data[i])];
+    }
+    auto any_of = [&](int g, int x0, int y0, int x1, int y1) {
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x)
+          if (group[std::size_t(y) * std::size_t(components.width) + std::size_t(x)] == g) return true;
+      return false;
+    };
+    std::vector<int> drop;
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const int c2 = host[std::size_t(c1)];
+      if (c2 == 0) continue;
+      if (p.contain_surround != ContainSurround::Off) {
+        const Acc& a = acc[std::size_t(c1)];
+        const Acc& b = acc[std::size_t(c2)];
+        const bool lr = any_of(c2, b.x0, a.y0, a.x0 - 1, a.y1) && any_of(c2, a.x1 + 1, a.y0, b.x1, a.y1);
+        const bool ud = any_of(c2, a.x0, b.y0, a.x1, a.y0 - 1) && any_of(c2, a.x0, a.y1 + 1, a.x1, b.y1);
+        if (p.contain_surround == ContainSurround::All ? !(lr && ud) : !(lr || ud)) continue;
+      }
+      const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
+      if (std::abs(m1 - m2) <= p.contain_merge_rel_disparity * std::max(m1, m2)) {
+        const int r1 = find(c1), r2 = find(c2);
+        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      } else if (acc[std::size_t(c1)].n < p.contain_drop_max_px && (!p.contain_drop_nearer_only || m1 > m2)) {
+        drop.push_back(c1);
+      }
+    }
+    absorb();
+    for (int c : drop) acc[std::size_t(find(c))].n = 0;  // root of its group (it may host absorbed pieces)
+  }
 
   std::vector<Obstacle> obs;
   std::vector<int> comp_of;  // component label (group root) of each obstacle
@@ -146,6 +263,8 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     o.x0 = a.x0, o.y0 = a.y0, o.x1 = a.x1, o.y1 = a.y1, o.pixel_count = a.n;
     o.disparity_q4 = std::max<int>(1, a.d[mid]);  // d = 0 would be at infinity; clamp to 1/16 px
     o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
+    // Range (our addition, session 5): farther than max_distance_m is background, not an obstacle.
+    if (p.max_distance_m > 0 && o.distance_m > p.max_distance_m) continue;
     // Physical size: an obstacle lower than min_height_m (box rows * Z / f) is road or matcher noise.
     if (double(o.y1 - o.y0 + 1) * o.distance_m / calib.focal_px < p.min_height_m) continue;
     // Physical area (our addition, docs/detection.md "(e)"): the pixels cover n * (Z/f)^2 m^2.

@@ -442,6 +442,52 @@ def split_bimodal(comp: np.ndarray, n: int, disp: np.ndarray, min_px: int, min_r
     return comp, n
 
 
+def merge_edges(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, gap: int, rel: float,
+                columns: int) -> np.ndarray:
+    """Groups side by side (gap <= max(gap, 0), boxes overlapping by <= `columns`, rows overlapping by half
+    the lower box) whose facing edges (median disparity of their `columns` outermost columns) differ by
+    <= rel of the larger join: a slanted surface cut where two k-means clusters meet (docs/detection.md
+    "(e) Edge continuity")."""
+    if rel <= 0 or columns <= 0:
+        return roots
+    g = roots[comp] * (comp > 0)
+    root = {int(r): int(r) for r in np.unique(g[g > 0])}
+
+    def find(c: int) -> int:
+        while root[c] != c:
+            c = root[c]
+        return c
+    box, lm, rm = {}, {}, {}
+    for c in root:
+        ys, xs = np.nonzero(g == c)
+        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
+        lm[c] = float(np.median(disp[ys[xs < xs.min() + columns], xs[xs < xs.min() + columns]]))
+        rm[c] = float(np.median(disp[ys[xs > xs.max() - columns], xs[xs > xs.max() - columns]]))
+    gap = max(gap, 0)
+    for c1 in sorted(box):
+        a = box[c1]
+        for c2 in sorted(box):
+            b = box[c2]
+            if c2 == c1 or b[2] <= a[2]:
+                continue
+            gw = b[0] - a[2] - 1
+            if gw > gap or gw < -columns:
+                continue
+            ov = min(a[3], b[3]) - max(a[1], b[1]) + 1
+            if 2 * ov < min(a[3] - a[1] + 1, b[3] - b[1] + 1):
+                continue
+            if abs(rm[c1] - lm[c2]) > rel * max(rm[c1], lm[c2]) + 1e-9:
+                continue
+            r1, r2 = find(c1), find(c2)
+            if r1 != r2:
+                root[max(r1, r2)] = min(r1, r2)
+    out = np.array(roots).copy()
+    for c in range(1, n + 1):
+        if out[c] in root:
+            out[c] = find(int(out[c]))
+    return out
+
+
 def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, gap: int, rel: float,
                    max_gap: int, min_area: int) -> np.ndarray:
     """Groups (after merge_fragments) at the same depth (medians within rel) with the same top and
@@ -494,6 +540,69 @@ def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray
     return out
 
 
+def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, min_inside: float,
+                      merge_rel: float, drop_max_px: int, nearer_only: bool, min_area: int,
+                      surround: str = "opposite") -> np.ndarray:
+    """Groups (after the merging) whose box lies >= min_inside inside the box of a larger group (more
+    pixels, >= min_area; the one with the most pixels, ties: lowest label) join it when the medians differ
+    by <= merge_rel of the larger, else are dropped (root 0) when smaller than drop_max_px pixels (and,
+    with nearer_only, nearer than it). Decisions on the groups before the pass (docs/detection.md "(e)
+    Contained groups"). surround: where the larger group must have pixels: "opposite" = left and right of
+    the box within its rows, or above and below within its columns; "all" = all four; "off" = none."""
+    if min_inside <= 0:
+        return roots
+    g = roots[comp] * (comp > 0)
+    box, med, cnt = {}, {}, {}
+    for c in np.unique(g[g > 0]):
+        c = int(c)
+        ys, xs = np.nonzero(g == c)
+        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
+        med[c] = float(np.median(disp[ys, xs]))
+        cnt[c] = len(xs)
+    host = {}
+    for c1 in sorted(box):
+        a = box[c1]
+        area = (a[2] - a[0] + 1) * (a[3] - a[1] + 1)
+        best = 0
+        for c2 in sorted(box):
+            b = box[c2]
+            if c2 == c1 or cnt[c2] <= cnt[c1] or cnt[c2] < min_area or (best and cnt[c2] <= cnt[best]):
+                continue
+            iw = min(a[2], b[2]) - max(a[0], b[0]) + 1
+            ih = min(a[3], b[3]) - max(a[1], b[1]) + 1
+            if iw > 0 and ih > 0 and iw * ih >= min_inside * area:
+                best = c2
+        if best and surround != "off":
+            b = box[best]
+            on = g == best
+            lr = on[a[1]:a[3] + 1, b[0]:a[0]].any() and on[a[1]:a[3] + 1, a[2] + 1:b[2] + 1].any()
+            ud = on[b[1]:a[1], a[0]:a[2] + 1].any() and on[a[3] + 1:b[3] + 1, a[0]:a[2] + 1].any()
+            best = best if ((lr and ud) if surround == "all" else (lr or ud)) else 0
+        if best:
+            host[c1] = best
+    root = {c: c for c in box}
+
+    def find(c: int) -> int:
+        while root[c] != c:
+            c = root[c]
+        return c
+    drop = []
+    for c1, c2 in host.items():
+        if abs(med[c1] - med[c2]) <= merge_rel * max(med[c1], med[c2]) + 1e-9:
+            r1, r2 = find(c1), find(c2)
+            if r1 != r2:
+                root[max(r1, r2)] = min(r1, r2)
+        elif cnt[c1] < drop_max_px and (not nearer_only or med[c1] > med[c2]):
+            drop.append(c1)
+    dropped = {find(c) for c in drop}
+    out = np.array(roots).copy()
+    for c in range(1, n + 1):
+        if out[c] in root:
+            r = find(int(out[c]))
+            out[c] = 0 if r in dropped else r
+    return out
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
@@ -525,8 +634,13 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
                             int(p.split_rounds))
     roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
+    roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
+                        int(p.merge_edge_columns))
     roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
                            int(p.merge_occluded_max_gap_px), int(p.min_area_px))
+    roots = resolve_contained(comp, disp, n, roots, float(p.contain_min_inside), float(p.contain_merge_rel_disparity),
+                              int(p.contain_drop_max_px), bool(p.contain_drop_nearer_only), int(p.min_area_px),
+                              str(p.contain_surround))
     comp = roots[comp] * (comp > 0)
     obstacles = []
     comp_ids = []
@@ -536,6 +650,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
             continue
         d = max(float(np.median(disp[ys, xs])), 1.0 / 16)
         z = calib["focal_px"] * calib["baseline_m"] / d
+        if p.max_distance_m > 0 and z > p.max_distance_m:
+            continue  # range, docs/detection.md "(e)"
         if (ys.max() - ys.min() + 1) * z / calib["focal_px"] < p.min_height_m:
             continue
         if p.min_area_m2 > 0 and len(xs) * (z / calib["focal_px"]) ** 2 < p.min_area_m2:
