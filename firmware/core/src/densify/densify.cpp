@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
 
 namespace fs {
 
@@ -38,15 +39,7 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
     }
     row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
   }
-  std::vector<std::int32_t> parent(runs.size());
-  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<std::int32_t>(i);
-  auto find = [&](std::int32_t a) {
-    while (parent[std::size_t(a)] != a) {
-      parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
-      a = parent[std::size_t(a)];
-    }
-    return a;
-  };
+  detail::MinRootUnionFind uf(runs.size());
   for (int y = 1; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
     const std::int16_t* u = disp.row(y - 1);
@@ -58,13 +51,13 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
       if (ro[x] == last_a && ru[x] == last_b) continue;
       last_a = ro[x];
       last_b = ru[x];
-      const std::int32_t ra = find(ro[x]), rb = find(ru[x]);
-      if (ra != rb) parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
+      uf.unite(ro[x], ru[x]);
     }
   }
+  std::vector<std::int32_t> parent(runs.size());  // each run's root
   std::vector<std::int32_t> size(runs.size(), 0);
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    parent[i] = find(static_cast<std::int32_t>(i));
+    parent[i] = uf.find(static_cast<std::int32_t>(i));
     size[std::size_t(parent[i])] += runs[i].x1 - runs[i].x0;
   }
   int count = 0;

@@ -173,15 +173,7 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
     }
     row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
   }
-  std::vector<std::int32_t> parent(runs.size());
-  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<std::int32_t>(i);
-  auto find = [&](std::int32_t a) {
-    while (parent[std::size_t(a)] != a) {
-      parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
-      a = parent[std::size_t(a)];
-    }
-    return a;
-  };
+  detail::MinRootUnionFind uf(runs.size());
   for (int y = 1; y < h; ++y) {
     std::int32_t i = row_begin[std::size_t(y) - 1];
     const std::int32_t i_end = row_begin[std::size_t(y)];
@@ -190,14 +182,14 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
       while (i < i_end && runs[std::size_t(i)].x1 <= b.x0) ++i;  // runs above ending before b
       for (std::int32_t k = i; k < i_end && runs[std::size_t(k)].x0 < b.x1; ++k) {
         if (runs[std::size_t(k)].label != b.label) continue;
-        const std::int32_t ra = find(k), rb = find(j);
-        if (ra != rb) parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);  // root = first run
+        uf.unite(k, j);  // root = first run
       }
     }
   }
+  std::vector<std::int32_t> parent(runs.size());  // each run's root (its piece's first run)
   std::vector<std::int64_t> size(runs.size(), 0);
   for (std::size_t j = 0; j < runs.size(); ++j) {
-    parent[j] = find(static_cast<std::int32_t>(j));
+    parent[j] = uf.find(static_cast<std::int32_t>(j));
     size[std::size_t(parent[j])] += runs[j].x1 - runs[j].x0;
   }
   ImageI32 out(w, h, -1);
