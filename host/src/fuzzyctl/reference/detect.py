@@ -346,15 +346,50 @@ def fill_holes(disp: np.ndarray, max_run: int, left_border: bool = True) -> np.n
     return out
 
 
+class _Joins:
+    """Union of groups by label with the smaller label as root, as in the firmware's merge passes."""
+
+    def __init__(self, labels) -> None:
+        self.root = {int(c): int(c) for c in labels}
+
+    def find(self, c: int) -> int:
+        while self.root[c] != c:
+            c = self.root[c]
+        return c
+
+    def join(self, a: int, b: int) -> None:
+        r1, r2 = self.find(a), self.find(b)
+        if r1 != r2:
+            self.root[max(r1, r2)] = min(r1, r2)
+
+    def relabel(self, roots: np.ndarray, n: int, dropped: frozenset | set = frozenset()) -> np.ndarray:
+        """roots (component -> group) with every group replaced by its joined root (0 if dropped)."""
+        out = np.array(roots).copy()
+        for c in range(1, n + 1):
+            if out[c] in self.root:
+                r = self.find(int(out[c]))
+                out[c] = 0 if r in dropped else r
+        return out
+
+
+def _group_stats(comp: np.ndarray, disp: np.ndarray, roots: np.ndarray):
+    """Group image (component labels mapped through roots) and per group: box (x0, y0, x1, y1),
+    median disparity, pixel count."""
+    g = roots[comp] * (comp > 0)
+    box, med, cnt = {}, {}, {}
+    for c in np.unique(g[g > 0]):
+        c = int(c)
+        ys, xs = np.nonzero(g == c)
+        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
+        med[c] = float(np.median(disp[ys, xs]))
+        cnt[c] = len(xs)
+    return g, box, med, cnt
+
+
 def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float) -> np.ndarray:
     """Component -> group root (smallest label): boxes grown by `gap` overlap and the medians differ
     by <= rel of the larger (single linkage; the firmware uses the lower median of Q4 values)."""
-    root = list(range(n + 1))
-
-    def find(c: int) -> int:
-        while root[c] != c:
-            c = root[c]
-        return c
+    joins = _Joins(range(n + 1))
     if gap < 0 or rel <= 0:
         return np.arange(n + 1)
     box, med = {}, {}
@@ -372,10 +407,8 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
                 continue
             if abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
                 continue
-            r1, r2 = find(c1), find(c2)
-            if r1 != r2:
-                root[max(r1, r2)] = min(r1, r2)
-    return np.array([find(c) for c in range(n + 1)])
+            joins.join(c1, c2)
+    return np.array([joins.find(c) for c in range(n + 1)])
 
 
 def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: float) -> float | None:
@@ -450,17 +483,11 @@ def merge_edges(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, g
     "(e) Edge continuity")."""
     if rel <= 0 or columns <= 0:
         return roots
-    g = roots[comp] * (comp > 0)
-    root = {int(r): int(r) for r in np.unique(g[g > 0])}
-
-    def find(c: int) -> int:
-        while root[c] != c:
-            c = root[c]
-        return c
-    box, lm, rm = {}, {}, {}
-    for c in root:
+    g, box, _, _ = _group_stats(comp, disp, roots)
+    joins = _Joins(box)
+    lm, rm = {}, {}
+    for c in box:
         ys, xs = np.nonzero(g == c)
-        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
         lm[c] = float(np.median(disp[ys[xs < xs.min() + columns], xs[xs < xs.min() + columns]]))
         rm[c] = float(np.median(disp[ys[xs > xs.max() - columns], xs[xs > xs.max() - columns]]))
     gap = max(gap, 0)
@@ -478,14 +505,8 @@ def merge_edges(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, g
                 continue
             if abs(rm[c1] - lm[c2]) > rel * max(rm[c1], lm[c2]) + 1e-9:
                 continue
-            r1, r2 = find(c1), find(c2)
-            if r1 != r2:
-                root[max(r1, r2)] = min(r1, r2)
-    out = np.array(roots).copy()
-    for c in range(1, n + 1):
-        if out[c] in root:
-            out[c] = find(int(out[c]))
-    return out
+            joins.join(c1, c2)
+    return joins.relabel(roots, n)
 
 
 def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, gap: int, rel: float,
@@ -496,19 +517,8 @@ def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray
     common rows) up to `gap` open columns, join (docs/detection.md "(e) Occlusion merging")."""
     if max_gap <= 0 or rel <= 0:
         return roots
-    g = roots[comp] * (comp > 0)
-    root = {int(r): int(r) for r in np.unique(g[g > 0])}
-
-    def find(c: int) -> int:
-        while root[c] != c:
-            c = root[c]
-        return c
-    box, med, cnt = {}, {}, {}
-    for c in root:
-        ys, xs = np.nonzero(g == c)
-        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
-        med[c] = float(np.median(disp[ys, xs]))
-        cnt[c] = len(xs)
+    _, box, med, cnt = _group_stats(comp, disp, roots)
+    joins = _Joins(box)
     gap = max(gap, 0)
     for c1 in sorted(box):
         a = box[c1]
@@ -520,7 +530,7 @@ def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray
             if gw <= gap or gw > max_gap or abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
                 continue
             tol = max(a[3] - a[1] + 1, b[3] - b[1] + 1) // 20 + 2
-            if abs(a[1] - b[1]) > tol or abs(a[3] - b[3]) > tol or find(c1) == find(c2):
+            if abs(a[1] - b[1]) > tol or abs(a[3] - b[3]) > tol or joins.find(c1) == joins.find(c2):
                 continue
             ry0, ry1 = max(a[1], b[1]), min(a[3], b[3])
             cover = np.zeros(gw, bool)
@@ -531,13 +541,8 @@ def merge_occluded(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray
                         cover[lo - a[2] - 1:hi - a[2]] = True
             if np.count_nonzero(~cover) > gap:
                 continue
-            r1, r2 = find(c1), find(c2)
-            root[max(r1, r2)] = min(r1, r2)
-    out = np.array(roots).copy()
-    for c in range(1, n + 1):
-        if out[c] in root:
-            out[c] = find(int(out[c]))
-    return out
+            joins.join(c1, c2)
+    return joins.relabel(roots, n)
 
 
 def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndarray, min_inside: float,
@@ -551,14 +556,7 @@ def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndar
     the box within its rows, or above and below within its columns; "all" = all four; "off" = none."""
     if min_inside <= 0:
         return roots
-    g = roots[comp] * (comp > 0)
-    box, med, cnt = {}, {}, {}
-    for c in np.unique(g[g > 0]):
-        c = int(c)
-        ys, xs = np.nonzero(g == c)
-        box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
-        med[c] = float(np.median(disp[ys, xs]))
-        cnt[c] = len(xs)
+    g, box, med, cnt = _group_stats(comp, disp, roots)
     host = {}
     for c1 in sorted(box):
         a = box[c1]
@@ -580,27 +578,14 @@ def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndar
             best = best if ((lr and ud) if surround == "all" else (lr or ud)) else 0
         if best:
             host[c1] = best
-    root = {c: c for c in box}
-
-    def find(c: int) -> int:
-        while root[c] != c:
-            c = root[c]
-        return c
+    joins = _Joins(box)
     drop = []
     for c1, c2 in host.items():
         if abs(med[c1] - med[c2]) <= merge_rel * max(med[c1], med[c2]) + 1e-9:
-            r1, r2 = find(c1), find(c2)
-            if r1 != r2:
-                root[max(r1, r2)] = min(r1, r2)
+            joins.join(c1, c2)
         elif cnt[c1] < drop_max_px and (not nearer_only or med[c1] > med[c2]):
             drop.append(c1)
-    dropped = {find(c) for c in drop}
-    out = np.array(roots).copy()
-    for c in range(1, n + 1):
-        if out[c] in root:
-            r = find(int(out[c]))
-            out[c] = 0 if r in dropped else r
-    return out
+    return joins.relabel(roots, n, {joins.find(c) for c in drop})
 
 
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
