@@ -1,7 +1,9 @@
 // Internal helpers of the core: integer math, fixed-point tables, threading.
 #pragma once
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <cstdint>
 #include <vector>
 
@@ -101,6 +103,32 @@ class MinRootUnionFind {
  private:
   std::vector<std::int32_t> parent_;
 };
+
+// Calls f(x0, x1) for every run [x0, x1) of equal values in row[0..w), left to right (w >= 1).
+// The run ends are found without a per-pixel branch: a vectorisable pass writes a 0/1 flag per
+// pixel (value differs from its left neighbour), then the flags are read 8 at a time as one 64-bit
+// word and the set bytes visited by count-trailing-zeros (runs are a few pixels long, so most
+// words hold one or two ends). `flags` is caller scratch of at least w + 8 bytes.
+static_assert(std::endian::native == std::endian::little, "for_each_run reads flag bytes as a little-endian word");
+template <class T, class F>
+void for_each_run(const T* __restrict row, int w, std::uint8_t* __restrict flags, F&& f) {
+  if (w <= 0) return;
+  flags[0] = 0;
+  for (int x = 1; x < w; ++x) flags[x] = static_cast<std::uint8_t>(row[x] != row[x - 1]);
+  flags[w] = 1;  // sentinel: the end of the last run
+  for (int j = 1; j < 8; ++j) flags[w + j] = 0;
+  int x0 = 0;
+  for (int base = 0; base <= w; base += 8) {
+    std::uint64_t word;
+    std::memcpy(&word, flags + base, 8);
+    while (word != 0) {
+      const int e = base + std::countr_zero(word) / 8;
+      f(x0, e);
+      x0 = e;
+      word &= word - 1;
+    }
+  }
+}
 
 // floor(sqrt(v)) for v < 2^62, exact.
 inline std::uint64_t isqrt64(std::uint64_t v) {

@@ -1,9 +1,11 @@
+#include <array>
 #include <queue>
 #include <set>
 
 #include <gtest/gtest.h>
 
 #include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
 #include "slic_reference.hpp"
 #include "test_util.hpp"
 
@@ -134,3 +136,28 @@ TEST(Segmentation, FromLabelsBuildsRuns) {
 
 }  // namespace
 }  // namespace fs
+
+// detail::for_each_run (flag bytes read as 64-bit words) against the plain scan it replaced, on
+// random rows of every width 1..80 (word boundaries, sentinel) with short and long runs.
+TEST(ForEachRun, MatchesScalarScan) {
+  std::uint32_t state = 12345;
+  auto rnd = [&] { state = state * 1664525u + 1013904223u; return state >> 8; };
+  for (int w = 1; w <= 80; ++w) {
+    for (int rep = 0; rep < 20; ++rep) {
+      std::vector<std::int32_t> row(static_cast<std::size_t>(w));
+      const std::uint32_t stay = rep % 4 == 0 ? 0u : 90u;  // % chance a pixel repeats its left neighbour
+      for (int x = 0; x < w; ++x)
+        row[std::size_t(x)] = x > 0 && rnd() % 100 < stay ? row[std::size_t(x) - 1] : static_cast<std::int32_t>(rnd() % 3) - 1;
+      std::vector<std::array<int, 2>> expect, got;
+      for (int x = 0; x < w;) {
+        int e = x + 1;
+        while (e < w && row[std::size_t(e)] == row[std::size_t(x)]) ++e;
+        expect.push_back({x, e});
+        x = e;
+      }
+      std::vector<std::uint8_t> flags(std::size_t(w) + 8, 0xAA);
+      fs::detail::for_each_run(row.data(), w, flags.data(), [&](int x0, int x1) { got.push_back({x0, x1}); });
+      ASSERT_EQ(got, expect) << "w=" << w << " rep=" << rep;
+    }
+  }
+}

@@ -53,12 +53,13 @@ Segmentation segmentation_from_labels(ImageI32 labels) {
   seg.count = maxl + 1;
   seg.pixels.assign(std::size_t(seg.count), 0);
   std::vector<std::int32_t> nruns(std::size_t(seg.count), 0);
+  std::vector<std::uint8_t> flags(std::size_t(w) + 8);
   for (int y = 0; y < h; ++y) {
     const std::int32_t* l = labels.row(y);
-    for (int x = 0; x < w; ++x) {
-      ++seg.pixels[std::size_t(l[x])];
-      if (x == 0 || l[x - 1] != l[x]) ++nruns[std::size_t(l[x])];
-    }
+    detail::for_each_run(l, w, flags.data(), [&](int x, int e) {
+      seg.pixels[std::size_t(l[x])] += e - x;
+      ++nruns[std::size_t(l[x])];
+    });
   }
   seg.run_begin.assign(std::size_t(seg.count) + 1, 0);
   for (int s = 0; s < seg.count; ++s) seg.run_begin[std::size_t(s) + 1] = seg.run_begin[std::size_t(s)] + nruns[std::size_t(s)];
@@ -66,13 +67,7 @@ Segmentation segmentation_from_labels(ImageI32 labels) {
   std::vector<std::int32_t> fill(seg.run_begin.begin(), seg.run_begin.end() - 1);
   for (int y = 0; y < h; ++y) {
     const std::int32_t* l = labels.row(y);
-    int x = 0;
-    while (x < w) {
-      int e = x + 1;
-      while (e < w && l[e] == l[x]) ++e;
-      seg.runs[std::size_t(fill[std::size_t(l[x])]++)] = Run{y, x, e};
-      x = e;
-    }
+    detail::for_each_run(l, w, flags.data(), [&](int x, int e) { seg.runs[std::size_t(fill[std::size_t(l[x])]++)] = Run{y, x, e}; });
   }
   seg.labels = std::move(labels);
   return seg;
@@ -108,6 +103,16 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
 
   ImageI32 labels(w, h, -1);
   std::vector<std::uint32_t> dist(std::size_t(w) * std::size_t(h));
+  // Row prefix sums of the grey values (int32: <= 255 * w) for the centre update, and the run
+  // scratch of detail::for_each_run.
+  std::vector<std::int32_t> grey_prefix(std::size_t(h) * std::size_t(w + 1));
+  for (int y = 0; y < h; ++y) {
+    std::int32_t* gp = grey_prefix.data() + std::size_t(y) * std::size_t(w + 1);
+    const std::uint8_t* r = img.row(y);
+    gp[0] = 0;
+    for (int x = 0; x < w; ++x) gp[x + 1] = gp[x] + r[x];
+  }
+  std::vector<std::uint8_t> flags(std::size_t(w) + 8);
   std::vector<std::int64_t> sx(centers.size()), sy(centers.size()), si(centers.size()), cnt(centers.size());
   for (int it = 0; it < p.iterations; ++it) {
     std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
@@ -120,29 +125,22 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
                     static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
     }
     // Update centres (integer rounded means). Unreached pixels (-1) keep no centre. Per row, a run
-    // of equal labels adds its position sums in closed form and its grey values in one tight loop
-    // (the same integer sums as pixel by pixel).
+    // of equal labels adds its position sums in closed form and its grey values from the row's
+    // prefix sums (the same integer sums as pixel by pixel).
     std::fill(sx.begin(), sx.end(), 0); std::fill(sy.begin(), sy.end(), 0);
     std::fill(si.begin(), si.end(), 0); std::fill(cnt.begin(), cnt.end(), 0);
     for (int y = 0; y < h; ++y) {
       const std::int32_t* lab = labels.row(y);
-      const std::uint8_t* r = img.row(y);
-      int x = 0;
-      while (x < w) {
+      const std::int32_t* gp = grey_prefix.data() + std::size_t(y) * std::size_t(w + 1);
+      detail::for_each_run(lab, w, flags.data(), [&](int x, int e) {
         const std::int32_t k = lab[x];
-        int e = x + 1;
-        while (e < w && lab[e] == k) ++e;
-        if (k >= 0) {
-          const std::int64_t len = e - x;
-          std::int64_t grey = 0;
-          for (int j = x; j < e; ++j) grey += r[j];
-          sx[std::size_t(k)] += (std::int64_t(x) + e - 1) * len / 2;
-          sy[std::size_t(k)] += std::int64_t(y) * len;
-          si[std::size_t(k)] += grey;
-          cnt[std::size_t(k)] += len;
-        }
-        x = e;
-      }
+        if (k < 0) return;
+        const std::int64_t len = e - x;
+        sx[std::size_t(k)] += (std::int64_t(x) + e - 1) * len / 2;
+        sy[std::size_t(k)] += std::int64_t(y) * len;
+        si[std::size_t(k)] += gp[e] - gp[x];
+        cnt[std::size_t(k)] += len;
+      });
     }
     for (std::size_t k = 0; k < centers.size(); ++k) {
       const std::int64_t n = cnt[k];
@@ -164,13 +162,7 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
   std::vector<std::int32_t> row_begin(std::size_t(h) + 1, 0);
   for (int y = 0; y < h; ++y) {
     const std::int32_t* lab = labels.row(y);
-    int x = 0;
-    while (x < w) {
-      int e = x + 1;
-      while (e < w && lab[e] == lab[x]) ++e;
-      runs.push_back({x, e, lab[x]});
-      x = e;
-    }
+    detail::for_each_run(lab, w, flags.data(), [&](int x, int e) { runs.push_back({x, e, lab[x]}); });
     row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
   }
   detail::MinRootUnionFind uf(runs.size());
