@@ -553,8 +553,18 @@ LoopResult RobotLoop::run() {
         obstacles.push_back(o);
       }
     }
-    const robot::PlanOutput plan = planner.plan(pose, mixer.last(), goal, obstacles);
-    const bool ahead = robot::obstacle_in_front(pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
+    // Latency compensation: the command computed now reaches the motors after the processing
+    // latency, and until then the robot drives the last command and moving obstacles go on moving.
+    // Plan (and check the front) from that predicted moment: pose advanced along the last command,
+    // obstacles along their velocities. Simulated clock: the configured latency; wall clock: the
+    // time since this frame's capture began.
+    Pose2D plan_pose = pose;
+    if (I.pp.latency_compensation) {
+      const double lat_s = sim_clock ? robot::ns_to_s(latency_ns) : wall_ms_since(w0) * 1e-3;
+      plan_pose = robot::predict_to_command_time(pose, mixer.last(), lat_s, obstacles);
+    }
+    const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles);
+    const bool ahead = robot::obstacle_in_front(plan_pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;
     if (plan.status == robot::PlanStatus::kReached) want = {};
     if (look_around_turned < 2.0 * M_PI) {

@@ -58,6 +58,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.w_progress = v.num("planner.w_progress");
   p.uncertainty_sigmas = v.num("planner.uncertainty_sigmas");
   p.uncertainty_max_m = v.num("planner.uncertainty_max_m");
+  p.latency_compensation = v.flag("planner.latency_compensation");
   return p;
 }
 

@@ -303,6 +303,13 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   return out;
 }
 
+Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, double latency_s,
+                               std::vector<CircleObstacle>& obstacles) {
+  if (!(latency_s > 0.0)) return pose;
+  for (CircleObstacle& o : obstacles) o.c = o.c + latency_s * o.vel;
+  return integrate_pose(pose, current, latency_s);
+}
+
 double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal, double radius,
                             double resolution_m) {
   // Free space: centre farther than r_i + radius from every circle centre.

@@ -31,6 +31,28 @@ TEST(Odometry, StraightAndFullCircle) {
   EXPECT_NEAR(q.yaw, M_PI / 2, 1e-9);
 }
 
+// The planner's t = 0 moves to the moment the command takes effect: pose along the current arc,
+// obstacles along their velocities; no latency changes nothing.
+TEST(Planner, LatencyCompensationPredictsPoseAndObstacles) {
+  std::vector<CircleObstacle> obs = {{{2.0, 0.0}, 0.3, {-0.5, 0.25}}, {{1.0, 1.0}, 0.2, {}}};
+  const Pose2D p = predict_to_command_time({1.0, 2.0, M_PI / 2}, {0.3, 0.0}, 0.1, obs);
+  EXPECT_NEAR(p.x, 1.0, 1e-12);
+  EXPECT_NEAR(p.y, 2.03, 1e-12);
+  EXPECT_NEAR(p.yaw, M_PI / 2, 1e-12);
+  EXPECT_NEAR(obs[0].c.x, 1.95, 1e-12);
+  EXPECT_NEAR(obs[0].c.y, 0.025, 1e-12);
+  EXPECT_EQ(obs[1].c.x, 1.0);
+  EXPECT_EQ(obs[1].c.y, 1.0);
+  const Pose2D q = predict_to_command_time({0, 0, 0}, {0.3, 1.0}, M_PI / 2, obs);  // quarter circle
+  EXPECT_NEAR(q.x, 0.3, 1e-9);
+  EXPECT_NEAR(q.y, 0.3, 1e-9);
+  std::vector<CircleObstacle> same = {{{2.0, 0.0}, 0.3, {-0.5, 0.25}}};
+  const Pose2D r = predict_to_command_time({1.0, 2.0, 0.5}, {0.3, 1.0}, 0.0, same);
+  EXPECT_EQ(r.x, 1.0);
+  EXPECT_EQ(r.yaw, 0.5);
+  EXPECT_EQ(same[0].c.x, 2.0);
+}
+
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {
   EXPECT_NEAR(shortest_path_length({}, {0, 0}, {3, 4}, 0.2), 5.0, 1e-9);
 }

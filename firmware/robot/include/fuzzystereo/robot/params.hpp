@@ -58,6 +58,8 @@ struct PlannerParams {
   double w_progress = 1.5;           // cost weight: remaining distance to the carrot [1/m]
   double uncertainty_sigmas = 1.0;   // obstacle radius grows by this many position stds
   double uncertainty_max_m = 0.3;    // ... at most this much [m]
+  bool latency_compensation = true;  // plan from the pose and obstacle positions predicted to the
+                                     // time the command reaches the motors (docs/robot.md)
 };
 
 // [watchdog]

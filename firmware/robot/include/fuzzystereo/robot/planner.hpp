@@ -53,6 +53,13 @@ class Planner {
   RobotParams rp_;
 };
 
+// Latency compensation: a command computed from a frame reaches the motors latency_s later; until
+// then the robot keeps driving `current` and obstacles keep moving. Returns the pose predicted for
+// that moment (exact arc) and moves every obstacle centre along its velocity by latency_s, so the
+// planner's t = 0 is the moment its command takes effect. latency_s <= 0 changes nothing.
+Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, double latency_s,
+                               std::vector<CircleObstacle>& obstacles);
+
 // Length of the shortest path for a disc of radius `radius` from start to goal among static
 // circles (their velocities are ignored), or +infinity when none exists. Any-angle search
 // (Theta*) on a grid of `resolution_m` whose line-of-sight test is exact geometry (segment-to-circle
