@@ -78,13 +78,15 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
 
   // The two directions run side by side with half of the threads each (one direction alone with
   // a single thread).
-  SegmentCosts cost_l, cost_r;                                                          // eq. (1)-(9)
+  // The cost buffers live in the scratch, so repeated frames reuse their memory.
+  SegmentCosts& cost_l = scratch_costs(*scratch_[0]);                                   // eq. (1)-(9)
+  SegmentCosts& cost_r = scratch_costs(*scratch_[1]);
   const int nt = detail::resolve_threads(threads);
   const int cost_threads = nt >= 2 ? nt / 2 : 1;
   detail::run_pair(
       threads,
-      [&] { cost_l = compute_segment_costs(left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, cost_threads, scratch_[0].get()); },
-      [&] { cost_r = compute_segment_costs(right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads, scratch_[1].get()); });
+      [&] { compute_segment_costs(cost_l, left, right, grad_l, grad_r, r.seg_left, +1, p.cost, *lut_, cost_threads, scratch_[0].get()); },
+      [&] { compute_segment_costs(cost_r, right, left, grad_r, grad_l, r.seg_right, -1, p.cost, *lut_, cost_threads, scratch_[1].get()); });
   clock.lap(Stage::Cost);
 
   detail::run_pair(                                                                     // eq. (10)-(12), WTA

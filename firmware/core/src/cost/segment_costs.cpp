@@ -223,25 +223,35 @@ void top_k(const std::uint32_t* prescore, int D, int K, std::uint64_t* best, int
 
 struct CostScratch {
   PartnerRows rows;
+  SegmentCosts costs;  // the Matcher's output buffer (scratch_costs)
 };
 
 std::shared_ptr<CostScratch> make_cost_scratch() { return std::make_shared<CostScratch>(); }
 
+SegmentCosts& scratch_costs(CostScratch& scratch) { return scratch.costs; }
+
 SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, const ImageU16& ref_grad,
                                    const ImageU16& other_grad, const Segmentation& seg, int direction,
                                    const CostParams& p, const FisLut& fis, int threads, CostScratch* scratch) {
+  SegmentCosts c;
+  compute_segment_costs(c, ref, other, ref_grad, other_grad, seg, direction, p, fis, threads, scratch);
+  return c;
+}
+
+void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& other, const ImageU16& ref_grad,
+                           const ImageU16& other_grad, const Segmentation& seg, int direction, const CostParams& p,
+                           const FisLut& fis, int threads, CostScratch* scratch) {
   const int w = ref.width, D = p.max_disparity, B = p.nmi_bins;
   const int shift = p.inject_shift;  // test-only fault injection; 0 in every real config
   CostScratch local;
   PartnerRows& pr = (scratch ? scratch : &local)->rows;
   build_partner_rows(pr, other, other_grad, direction, D + std::abs(shift), B);
-  SegmentCosts c;
   c.segments = seg.count;
   c.disparities = D;
   const std::size_t total = std::size_t(seg.count) * std::size_t(D);
-  c.ncc.assign(total, 0);
-  c.igsad.assign(total, 0);
-  c.nmi.assign(total, 0);
+  c.ncc.resize(total);    // every entry is written below (all D of every segment)
+  c.igsad.resize(total);
+  c.nmi.assign(total, 0);  // only the candidates are written
   c.nmi_valid.assign(total, 0);
 
   std::int32_t max_pixels = 0;
@@ -407,7 +417,6 @@ SegmentCosts compute_segment_costs(const ImageU8& ref, const ImageU8& other, con
       }
     }
   }
-  return c;
 }
 
 }  // namespace fs
