@@ -89,7 +89,7 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m;
+      near_track_m, near_track_max_age_s;
   int moving_min_hits;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
@@ -102,6 +102,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.plan_radius_m = v.num("loop.plan_radius_m");
   p.moving_min_travel_m = v.num("loop.moving_min_travel_m");
   p.near_track_m = v.num("loop.near_track_m");
+  p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   return p;
 }
 
@@ -534,7 +535,7 @@ LoopResult RobotLoop::run() {
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
         if (!moving()) {
-          // Safety net: a confirmed track measured within the last second near the robot is an
+          // Safety net: a confirmed track measured within near_track_max_age_s near the robot is an
           // obstacle where it is now, whether or not its motion is trusted (a real mover that was
           // re-acquired as a new track has not "travelled" yet). Static, at its own radius (no
           // uncertainty growth): a static obstacle's track then coincides with its map cells.
@@ -545,7 +546,7 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          if (age_s <= 1.0 && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
+          if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
               dist > tr.radius_m + I.rp.radius_m)
             obstacles.push_back({tr.pos(), tr.radius_m, {}});
           continue;
