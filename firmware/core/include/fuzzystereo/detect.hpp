@@ -95,6 +95,10 @@ struct DetectParams {
   bool contain_drop_nearer_only = false;  // ... and only when nearer than the containing group
   ContainSurround contain_surround = ContainSurround::Opposite;  // where the larger group must have pixels
   double max_distance_m = 20.0;    // obstacles farther than this are dropped (0 = off) [m]
+  // ---- box extent (session 5 round 3) ----
+  bool foot_extend = true;         // a box whose bottom touches the road band of its disparity ends where
+                                   // the road line reaches that disparity (the row above) (the foot rows the band removed)
+  double foot_slack_px = 0.5;      // ... the bottom may lie this much disparity above the band [px]
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -247,6 +251,13 @@ ImageI32 split_bimodal_components(const ImageI32& components, int count, const I
 std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, const ImageI16& disp,
                                         const StereoCalib& calib, const DetectParams& p, ImageI32* labels);
 ObstacleClass classify_distance(double z_m, const DetectParams& p);
+
+// Box extent (docs/detection.md "(e) Box extent"). Ground contact: an obstacle whose box bottom row is
+// followed by a row whose road line value lies within the road band (road_tolerance_px,
+// road_tolerance_rel; plus foot_slack_px) below its median disparity gets y1 = the first row where the
+// line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
+void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
+                      const DetectParams& p);
 
 }  // namespace detect
 

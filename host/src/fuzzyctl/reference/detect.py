@@ -588,6 +588,26 @@ def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndar
     return joins.relabel(roots, n, {joins.find(c) for c in drop})
 
 
+def extend_to_ground(obstacles: list, a: float, b: float, horizon: int, h: int, p: DetectParams) -> None:
+    """Box extent, ground contact (docs/detection.md "(e) Box extent"): a box whose next row below has a
+    road line value within the road band (+ foot_slack_px) below the obstacle's disparity ends at the
+    last row where the line is still below that disparity (the last row if it never does)."""
+    if not p.foot_extend:
+        return
+    for o in obstacles:
+        x0, y0, x1, y1 = o.box
+        below = y1 + 1
+        if below >= h or below < horizon or (y1 >= horizon and a * y1 + b >= o.disparity_px):
+            continue
+        line = a * below + b
+        if line < o.disparity_px - (p.road_tolerance_px + p.road_tolerance_rel * max(line, 0.0)) - p.foot_slack_px - 1e-9:
+            continue
+        foot = y1  # the last row where the line is still below d: the obstacle's lowest row
+        while foot + 1 < h and a * (foot + 1) + b < o.disparity_px:
+            foot += 1
+        o.box = (x0, y0, x1, max(y1, foot))
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
@@ -646,6 +666,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
                                   (0.5 * (x0 + x1) - calib["cx"]) * z / calib["focal_px"], cls))
         comp_ids.append(c)
+    if found:
+        extend_to_ground(obstacles, a, b, horizon, h, p)
     order = sorted(range(len(obstacles)), key=lambda i: -obstacles[i].disparity_px)
     ol = np.zeros((h, w), np.int32)
     out = []
