@@ -1,5 +1,6 @@
 // Box extent (docs/detection.md "(e) Box extent"): ground contact on a hand-made road line table and
-// on the synthetic two-box scene, where the road band removes the boxes' lowest rows.
+// on the synthetic two-box scene, where the road band removes the boxes' lowest rows; sparse side
+// columns cut on a hand-made label image.
 #include <gtest/gtest.h>
 
 #include <climits>
@@ -73,6 +74,50 @@ TEST(DetectExtent, SceneBoxesReachTheirTrueBottomRow) {
       if (on) EXPECT_LE(std::abs(err), 1) << "box " << i;
       else EXPECT_LE(err, -3) << "box " << i;  // the band's rows are missing without it
     }
+  }
+}
+
+TEST(DetectExtent, SparseSideColumnsAreCut) {
+  // Obstacle 0 (label 1): columns 10..29 x rows 5..34 (30 px per column), column 20 nearly empty (a
+  // hole inside), and a skirt of 2 rows (33..34) at columns 30..44; obstacle 1 (label 2) elsewhere.
+  ImageI32 labels(80, 40, 0);
+  for (int y = 5; y <= 34; ++y)
+    for (int x = 10; x <= 29; ++x) labels.at(x, y) = (x == 20 && y != 5) ? 0 : 1;
+  for (int y = 33; y <= 34; ++y)
+    for (int x = 30; x <= 44; ++x) labels.at(x, y) = 1;
+  for (int y = 0; y <= 10; ++y)
+    for (int x = 60; x <= 70; ++x) labels.at(x, y) = 2;
+  const StereoCalib calib{200.0, 40.0, 20.0, 0.1, 0.5, 0.0};
+  auto make = [] {
+    Obstacle a, b;
+    a.id = 0, a.x0 = 10, a.y0 = 5, a.x1 = 44, a.y1 = 34, a.pixel_count = 20 * 30 - 29 + 30, a.distance_m = 2.0;
+    b.id = 1, b.x0 = 60, b.y0 = 0, b.x1 = 70, b.y1 = 10, b.pixel_count = 121, b.distance_m = 3.0;
+    return std::vector<Obstacle>{a, b};
+  };
+  DetectParams p;
+  p.trim_col_min_share = 0.1;  // need 3 of the fullest column's 30: the 2-px skirt goes, the hole stays
+  ImageI32 lab = labels;
+  auto obs = make();
+  detect::trim_sparse_columns(obs, lab, calib, p);
+  EXPECT_EQ(obs[0].x0, 10);
+  EXPECT_EQ(obs[0].x1, 29);
+  EXPECT_EQ(obs[0].y0, 5);
+  EXPECT_EQ(obs[0].y1, 34);
+  EXPECT_EQ(obs[0].pixel_count, 20 * 30 - 29);
+  EXPECT_NEAR(obs[0].lateral_m, (19.5 - 40.0) * 2.0 / 200.0, 1e-12);
+  EXPECT_EQ(lab.at(35, 34), 0);  // the cut pixels leave the labels
+  EXPECT_EQ(lab.at(29, 34), 1);
+  EXPECT_EQ(obs[1].x0, 60);      // a full rectangle is untouched
+  EXPECT_EQ(obs[1].x1, 70);
+  EXPECT_EQ(lab.at(65, 5), 2);
+  // A lower share keeps the skirt (2 >= 1.5); 0 = off.
+  for (double share : {0.05, 0.0}) {
+    p.trim_col_min_share = share;
+    lab = labels;
+    obs = make();
+    detect::trim_sparse_columns(obs, lab, calib, p);
+    EXPECT_EQ(obs[0].x1, 44) << share;
+    EXPECT_EQ(lab.at(35, 34), 1) << share;
   }
 }
 

@@ -98,7 +98,9 @@ struct DetectParams {
   // ---- box extent (session 5 round 3) ----
   bool foot_extend = true;         // a box whose bottom touches the road band of its disparity ends where
                                    // the road line reaches that disparity (the row above) (the foot rows the band removed)
-  double foot_slack_px = 0.5;      // ... the bottom may lie this much disparity above the band [px]
+  double foot_slack_px = 2.0;      // ... the bottom may lie this much disparity above the band [px]
+  double trim_col_min_share = 0.1; // side columns with fewer pixels than this share of the fullest column are
+                                   // cut off the box (0 = off)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -113,7 +115,8 @@ const char* obstacle_class_name(ObstacleClass c);
 
 struct Obstacle {
   int id = 0;                       // 0.. in order of distance (nearest first)
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive box of the component's pixels [px]
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive box of the obstacle's pixels; y1 may extend below
+                                    // them to the ground contact (extend_to_ground) [px]
   int pixel_count = 0;
   int disparity_q4 = 0;             // median Q4 disparity of the component
   double distance_m = 0.0;          // Z = f*B/d [m]
@@ -258,6 +261,12 @@ ObstacleClass classify_distance(double z_m, const DetectParams& p);
 // line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
 void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
                       const DetectParams& p);
+// Sparse sides: per obstacle, the box's outermost columns holding fewer of its pixels (labels == id + 1)
+// than trim_col_min_share of its fullest column are cut (from the left and from the right, until a column
+// reaches the share); the cut pixels leave `labels`, and box rows, pixel_count and lateral_m are
+// recomputed (distance unchanged). trim_col_min_share <= 0: unchanged.
+void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
+                         const DetectParams& p);
 
 }  // namespace detect
 

@@ -39,4 +39,45 @@ void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::i
   }
 }
 
+// Sparse sides: the columns at a box's left and right ends holding fewer of the obstacle's pixels
+// than trim_col_min_share of its fullest column are cut off, one column at a time from each side, and
+// the box, pixel count, labels and lateral X follow (the distance keeps the median of all pixels). The
+// matcher smooths the road's disparity towards an obstacle's at its foot, and fattens it into plain
+// background, so a low skirt of a few rows at the obstacle's depth joins the component and widens the
+// box by 10-50 px; a real obstacle's side columns are about as tall as its middle ones.
+void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
+                         const DetectParams& p) {
+  if (p.trim_col_min_share <= 0 || obstacles.empty()) return;
+  std::vector<std::int32_t> cols;
+  for (Obstacle& o : obstacles) {
+    const std::int32_t id = o.id + 1;
+    const int bw = o.x1 - o.x0 + 1;
+    cols.assign(std::size_t(bw), 0);
+    for (int y = o.y0; y <= o.y1; ++y) {
+      const std::int32_t* l = labels.row(y);
+      for (int x = o.x0; x <= o.x1; ++x) cols[std::size_t(x - o.x0)] += l[x] == id;
+    }
+    const double need = p.trim_col_min_share * double(*std::max_element(cols.begin(), cols.end()));
+    int a = 0, b = bw - 1;
+    while (a < b && double(cols[std::size_t(a)]) < need) ++a;
+    while (b > a && double(cols[std::size_t(b)]) < need) --b;
+    if (a == 0 && b == bw - 1) continue;
+    const int nx0 = o.x0 + a, nx1 = o.x0 + b;
+    int ny0 = o.y1, ny1 = o.y0, n = 0;
+    for (int y = o.y0; y <= o.y1; ++y) {
+      std::int32_t* l = labels.row(y);
+      for (int x = o.x0; x <= o.x1; ++x) {
+        if (l[x] != id) continue;
+        if (x < nx0 || x > nx1) {
+          l[x] = 0;  // cut off: no longer part of the obstacle
+        } else {
+          ny0 = std::min(ny0, y), ny1 = std::max(ny1, y), ++n;
+        }
+      }
+    }
+    o.x0 = nx0, o.x1 = nx1, o.y0 = ny0, o.y1 = ny1, o.pixel_count = n;
+    o.lateral_m = (0.5 * (o.x0 + o.x1) - calib.cx) * o.distance_m / calib.focal_px;
+  }
+}
+
 }  // namespace fs::detect

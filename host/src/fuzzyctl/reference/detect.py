@@ -608,6 +608,34 @@ def extend_to_ground(obstacles: list, a: float, b: float, horizon: int, h: int, 
         o.box = (x0, y0, x1, max(y1, foot))
 
 
+def trim_sparse_columns(obstacles: list, ol: np.ndarray, calib: dict, p: DetectParams) -> None:
+    """Box extent, sparse sides: the outermost columns of each box holding fewer of the obstacle's
+    pixels (ol == id + 1) than trim_col_min_share of its fullest column are cut; the cut pixels leave ol,
+    box rows, pixel count and lateral X follow (distance unchanged)."""
+    if p.trim_col_min_share <= 0:
+        return
+    for o in obstacles:
+        x0, y0, x1, y1 = o.box
+        on = ol[y0:y1 + 1, x0:x1 + 1] == o.id + 1
+        cols = on.sum(axis=0)
+        sparse = cols < p.trim_col_min_share * cols.max()
+        a, b = 0, len(cols) - 1
+        while a < b and sparse[a]:
+            a += 1
+        while b > a and sparse[b]:
+            b -= 1
+        if a == 0 and b == len(cols) - 1:
+            continue
+        sub = ol[y0:y1 + 1, x0:x1 + 1]
+        cut = on.copy()
+        cut[:, a:b + 1] = False
+        sub[cut] = 0
+        ys, xs = np.nonzero(sub == o.id + 1)
+        o.box = (x0 + a, y0 + int(ys.min()), x0 + b, y0 + int(ys.max()))
+        o.pixel_count = len(xs)
+        o.lateral_m = (0.5 * (o.box[0] + o.box[2]) - calib["cx"]) * o.distance_m / calib["focal_px"]
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
@@ -666,8 +694,6 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
                                   (0.5 * (x0 + x1) - calib["cx"]) * z / calib["focal_px"], cls))
         comp_ids.append(c)
-    if found:
-        extend_to_ground(obstacles, a, b, horizon, h, p)
     order = sorted(range(len(obstacles)), key=lambda i: -obstacles[i].disparity_px)
     ol = np.zeros((h, w), np.int32)
     out = []
@@ -676,6 +702,9 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         o.id = rank
         ol[comp == comp_ids[i]] = rank + 1
         out.append(o)
+    trim_sparse_columns(out, ol, calib, p)  # box extent, docs/detection.md "(e) Box extent"
+    if found:
+        extend_to_ground(out, a, b, horizon, h, p)
     return DetectReferenceResult(bins, vd, found, a, b, horizon, road_raw, road, skipped, rows, sky,
                                  cand.astype(np.uint8), centres, np.where(labels >= 0, labels, 255).astype(np.uint8),
                                  kept, out, ol)
