@@ -95,6 +95,7 @@ TEST(DetectExtent, SparseSideColumnsAreCut) {
     return std::vector<Obstacle>{a, b};
   };
   DetectParams p;
+  p.trim_col_top_share = 0.0;  // the low-side rule alone: next test
   p.trim_col_min_share = 0.1;  // need 3 of the fullest column's 30: the 2-px skirt goes, the hole stays
   ImageI32 lab = labels;
   auto obs = make();
@@ -118,6 +119,65 @@ TEST(DetectExtent, SparseSideColumnsAreCut) {
     detect::trim_sparse_columns(obs, lab, calib, p);
     EXPECT_EQ(obs[0].x1, 44) << share;
     EXPECT_EQ(lab.at(35, 34), 1) << share;
+  }
+}
+
+TEST(DetectExtent, LowSideColumnsAreCutUnlessTheSkyTookTheirTop) {
+  // Obstacle 0 (label 1, d = 8 px): columns 10..29 x rows 5..34, and a 10-row skirt (rows 25..34) at
+  // columns 30..44 — too many pixels for the sparse rule (10 >= 0.1 * 30), but its top (row 25) lies
+  // below 5 + 0.5 * 30 = 20. Obstacle 1 (label 2, d = 8 px): columns 50..69 x rows 0..29, of which
+  // columns 65..69 hold only rows 20..29; their rows 0..19 are sky-masked at the obstacle's disparity
+  // (the colour rule took a bright obstacle part above the horizon).
+  ImageI32 labels(80, 40, 0);
+  ImageU8 sky(80, 40, 0);
+  ImageI16 disp(80, 40, kInvalidDisp);
+  for (int y = 5; y <= 34; ++y)
+    for (int x = 10; x <= 29; ++x) labels.at(x, y) = 1;
+  for (int y = 25; y <= 34; ++y)
+    for (int x = 30; x <= 44; ++x) labels.at(x, y) = 1;
+  for (int y = 0; y <= 29; ++y)
+    for (int x = 50; x <= 69; ++x) {
+      if (x < 65 || y >= 20) labels.at(x, y) = 2;
+      else sky.at(x, y) = 1;
+      disp.at(x, y) = 128;
+    }
+  const StereoCalib calib{200.0, 40.0, 20.0, 0.1, 0.5, 0.0};
+  auto make = [] {
+    Obstacle a, b;
+    a.id = 0, a.x0 = 10, a.y0 = 5, a.x1 = 44, a.y1 = 34, a.pixel_count = 750, a.disparity_q4 = 128, a.distance_m = 2.5;
+    b.id = 1, b.x0 = 50, b.y0 = 0, b.x1 = 69, b.y1 = 29, b.pixel_count = 500, b.disparity_q4 = 128, b.distance_m = 2.5;
+    return std::vector<Obstacle>{a, b};
+  };
+  DetectParams p;
+  p.trim_col_min_share = 0.1;
+  p.trim_col_top_share = 0.5;
+  ImageI32 lab = labels;
+  auto obs = make();
+  detect::trim_sparse_columns(obs, lab, calib, p, &sky, &disp);
+  EXPECT_EQ(obs[0].x1, 29);  // the skirt is cut
+  EXPECT_EQ(obs[0].pixel_count, 600);
+  EXPECT_EQ(lab.at(35, 30), 0);
+  EXPECT_EQ(obs[1].x1, 69);  // the sky-masked tops at its depth count: kept
+  // Without the sky mask, or with the sky pixels at another depth (10 px vs 8 px: beyond 5 %), the
+  // columns 65..69 are low and go.
+  lab = labels;
+  obs = make();
+  detect::trim_sparse_columns(obs, lab, calib, p, nullptr, nullptr);
+  EXPECT_EQ(obs[1].x1, 64);
+  ImageI16 disp2 = disp;
+  for (int y = 0; y < 20; ++y)
+    for (int x = 65; x <= 69; ++x) disp2.at(x, y) = 160;
+  lab = labels;
+  obs = make();
+  detect::trim_sparse_columns(obs, lab, calib, p, &sky, &disp2);
+  EXPECT_EQ(obs[1].x1, 64);
+  // A share of 0.7 (top must be above row 26) keeps the skirt; 0 = off.
+  for (double share : {0.7, 0.0}) {
+    p.trim_col_top_share = share;
+    lab = labels;
+    obs = make();
+    detect::trim_sparse_columns(obs, lab, calib, p, &sky, &disp);
+    EXPECT_EQ(obs[0].x1, 44) << share;
   }
 }
 

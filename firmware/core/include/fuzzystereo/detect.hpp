@@ -101,6 +101,8 @@ struct DetectParams {
   double foot_slack_px = 2.0;      // ... the bottom may lie this much disparity above the band [px]
   double trim_col_min_share = 0.1; // side columns with fewer pixels than this share of the fullest column are
                                    // cut off the box (0 = off)
+  double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
+                                   // obstacle's depth) lies lower than this share of the box height (0 = off)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -261,12 +263,14 @@ ObstacleClass classify_distance(double z_m, const DetectParams& p);
 // line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
 void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
                       const DetectParams& p);
-// Sparse sides: per obstacle, the box's outermost columns holding fewer of its pixels (labels == id + 1)
-// than trim_col_min_share of its fullest column are cut (from the left and from the right, until a column
-// reaches the share); the cut pixels leave `labels`, and box rows, pixel_count and lateral_m are
-// recomputed (distance unchanged). trim_col_min_share <= 0: unchanged.
+// Sparse and low sides: per obstacle, the box's outermost columns holding fewer of its pixels (labels ==
+// id + 1) than trim_col_min_share of its fullest column, or whose top — highest own pixel, or sky pixel
+// (sky != 0) whose disparity is within max(cc_min_step_px, cc_max_rel_step * d) of the obstacle's — lies
+// below y0 + trim_col_top_share * box height, are cut (from the left and from the right, until a column
+// passes); the cut pixels leave `labels`, and box rows, pixel_count and lateral_m are recomputed
+// (distance unchanged). Both shares <= 0: unchanged. sky/disp may be null (no sky pixels count).
 void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
-                         const DetectParams& p);
+                         const DetectParams& p, const ImageU8* sky = nullptr, const ImageI16* disp = nullptr);
 
 }  // namespace detect
 

@@ -9,6 +9,7 @@
 // road_pixels.
 #include <algorithm>
 #include <climits>
+#include <cstdlib>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -39,15 +40,17 @@ void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::i
   }
 }
 
-// Sparse sides: the columns at a box's left and right ends holding fewer of the obstacle's pixels
-// than trim_col_min_share of its fullest column are cut off, one column at a time from each side, and
+// Sparse and low sides: the columns at a box's left and right ends holding fewer of the obstacle's pixels
+// than trim_col_min_share of its fullest column, or whose highest pixel lies lower than
+// trim_col_top_share of the box height below its top, are cut off, one column at a time from each side, and
 // the box, pixel count, labels and lateral X follow (the distance keeps the median of all pixels). The
 // matcher smooths the road's disparity towards an obstacle's at its foot, and fattens it into plain
 // background, so a low skirt of a few rows at the obstacle's depth joins the component and widens the
-// box by 10-50 px; a real obstacle's side columns are about as tall as its middle ones.
+// box by 10-50 px; a real obstacle's side columns are about as tall as its middle ones (vertical sides:
+// boxes, cylinders, posts; a cone or a person narrowing upwards loses its outer columns' low part).
 void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
-                         const DetectParams& p) {
-  if (p.trim_col_min_share <= 0 || obstacles.empty()) return;
+                         const DetectParams& p, const ImageU8* sky, const ImageI16* disp) {
+  if ((p.trim_col_min_share <= 0 && p.trim_col_top_share <= 0) || obstacles.empty()) return;
   std::vector<std::int32_t> cols;
   for (Obstacle& o : obstacles) {
     const std::int32_t id = o.id + 1;
@@ -61,6 +64,25 @@ void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, con
     int a = 0, b = bw - 1;
     while (a < b && double(cols[std::size_t(a)]) < need) ++a;
     while (b > a && double(cols[std::size_t(b)]) < need) --b;
+    if (p.trim_col_top_share > 0) {
+      // Low sides: a column's top = its highest pixel of the obstacle, or of the sky mask at the obstacle's
+      // depth (|q4 - d| <= the components' step: max(cc_min_step_px, cc_max_rel_step * d)) — the colour
+      // rule (b) also takes bright or grey obstacle pixels above the horizon, and such a column is not low.
+      std::vector<int> tops(std::size_t(bw), o.y1 + 1);
+      const int tol = std::max(int(std::lround(p.cc_min_step_px * kDispScale)), int(p.cc_max_rel_step * o.disparity_q4));
+      for (int y = o.y1; y >= o.y0; --y) {
+        const std::int32_t* l = labels.row(y);
+        const std::uint8_t* sk = sky ? sky->row(y) : nullptr;
+        const std::int16_t* dq = disp ? disp->row(y) : nullptr;
+        for (int x = o.x0; x <= o.x1; ++x) {
+          const bool on = l[x] == id || (sk && dq && sk[x] && dq[x] >= 0 && std::abs(int(dq[x]) - o.disparity_q4) <= tol);
+          if (on) tops[std::size_t(x - o.x0)] = y;
+        }
+      }
+      const double low = double(o.y0) + p.trim_col_top_share * double(o.y1 - o.y0 + 1);
+      while (a < b && double(tops[std::size_t(a)]) > low) ++a;
+      while (b > a && double(tops[std::size_t(b)]) > low) --b;
+    }
     if (a == 0 && b == bw - 1) continue;
     const int nx0 = o.x0 + a, nx1 = o.x0 + b;
     int ny0 = o.y1, ny1 = o.y0, n = 0;
