@@ -4,8 +4,8 @@
 // The box then ends tol/a rows (3-7 px here) above the obstacle's true bottom, which alone costs a
 // small obstacle the IoU >= 0.5 of a detection. Ground contact: the obstacle of median disparity d
 // stands on the road where the line reaches d, so a box whose bottom row lies in the band of d (or
-// up to foot_slack_px more above it) is extended down to the last row above it (the image's last row when the
-// line stays below d there: the foot is outside the image). Integer: Q4 line table and Q4 band, as in
+// up to foot_slack_px more above it) is extended down to the last row above the one where the line
+// reaches d (the image's last row when the line stays below d there: the foot is outside the image). Integer: Q4 line table and Q4 band, as in
 // road_pixels.
 #include <algorithm>
 #include <climits>
