@@ -62,6 +62,10 @@ DetectParams detect_params_from(const ConfigValues& v) {
   const std::string surround = v.str("detect.contain_surround");
   p.contain_surround = surround == "off" ? ContainSurround::Off : surround == "all" ? ContainSurround::All : ContainSurround::Opposite;
   p.max_distance_m = v.num("detect.max_distance_m");
+  p.foot_extend = v.flag("detect.foot_extend");
+  p.foot_slack_px = v.num("detect.foot_slack_px");
+  p.trim_col_min_share = v.num("detect.trim_col_min_share");
+  p.trim_col_top_share = v.num("detect.trim_col_top_share");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");

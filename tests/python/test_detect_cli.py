@@ -98,7 +98,10 @@ def test_detect_oracle_recovers_boxes_and_distances(firmware_bin, dataset, tmp_p
     assert ol.max() == len(dets)
     for o in dets:
         ys, xs = np.nonzero(ol == o["id"] + 1)
-        assert [xs.min(), ys.min(), xs.max(), ys.max()] == o["box"]
+        # The box is the labels' bounding box, except that ground contact (docs/detection.md "(e) Box
+        # extent") may extend its bottom over the foot rows the road band removed.
+        assert [xs.min(), ys.min(), xs.max()] == o["box"][:3]
+        assert ys.max() <= o["box"][3] <= ys.max() + 20
         assert len(xs) == o["pixel_count"]
     assert "[detect]" in meta["config_toml"]
 

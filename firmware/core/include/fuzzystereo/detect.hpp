@@ -95,6 +95,14 @@ struct DetectParams {
   bool contain_drop_nearer_only = false;  // ... and only when nearer than the containing group
   ContainSurround contain_surround = ContainSurround::Opposite;  // where the larger group must have pixels
   double max_distance_m = 20.0;    // obstacles farther than this are dropped (0 = off) [m]
+  // ---- box extent (session 5 round 3) ----
+  bool foot_extend = true;         // a box whose bottom touches the road band of its disparity ends where
+                                   // the road line reaches that disparity (the row above) (the foot rows the band removed)
+  double foot_slack_px = 2.0;      // ... the bottom may lie this much disparity above the band [px]
+  double trim_col_min_share = 0.1; // side columns with fewer pixels than this share of the fullest column are
+                                   // cut off the box (0 = off)
+  double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
+                                   // obstacle's depth) lies lower than this share of the box height (0 = off)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -109,7 +117,8 @@ const char* obstacle_class_name(ObstacleClass c);
 
 struct Obstacle {
   int id = 0;                       // 0.. in order of distance (nearest first)
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive box of the component's pixels [px]
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive box of the obstacle's pixels; y1 may extend below
+                                    // them to the ground contact (extend_to_ground) [px]
   int pixel_count = 0;
   int disparity_q4 = 0;             // median Q4 disparity of the component
   double distance_m = 0.0;          // Z = f*B/d [m]
@@ -247,6 +256,21 @@ ImageI32 split_bimodal_components(const ImageI32& components, int count, const I
 std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, const ImageI16& disp,
                                         const StereoCalib& calib, const DetectParams& p, ImageI32* labels);
 ObstacleClass classify_distance(double z_m, const DetectParams& p);
+
+// Box extent (docs/detection.md "(e) Box extent"). Ground contact: an obstacle whose box bottom row is
+// followed by a row whose road line value lies within the road band (road_tolerance_px,
+// road_tolerance_rel; plus foot_slack_px) below its median disparity gets y1 = the first row where the
+// line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
+void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
+                      const DetectParams& p);
+// Sparse and low sides: per obstacle, the box's outermost columns holding fewer of its pixels (labels ==
+// id + 1) than trim_col_min_share of its fullest column, or whose top — highest own pixel, or sky pixel
+// (sky != 0) whose disparity is within max(cc_min_step_px, cc_max_rel_step * d) of the obstacle's — lies
+// below y0 + trim_col_top_share * box height, are cut (from the left and from the right, until a column
+// passes); the cut pixels leave `labels`, and box rows, pixel_count and lateral_m are recomputed
+// (distance unchanged). Both shares <= 0: unchanged. sky/disp may be null (no sky pixels count).
+void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
+                         const DetectParams& p, const ImageU8* sky = nullptr, const ImageI16* disp = nullptr);
 
 }  // namespace detect
 

@@ -112,6 +112,9 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.components = detect::split_bimodal_components(r.components, n, disp, p.split_min_px, p.split_min_rel,
                                                   p.split_max_valley, p.split_rounds, &n);
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
+  // Box extent (our addition): sparse side columns cut, then the foot rows the road band removed.
+  detect::trim_sparse_columns(r.obstacles, r.obstacle_labels, calib, p, &r.sky_mask, &disp);
+  detect::extend_to_ground(r.obstacles, r.road_line_q4, p);
   lap(DetectStage::Objects);
   return r;
 }

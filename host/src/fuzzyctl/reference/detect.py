@@ -588,6 +588,65 @@ def resolve_contained(comp: np.ndarray, disp: np.ndarray, n: int, roots: np.ndar
     return joins.relabel(roots, n, {joins.find(c) for c in drop})
 
 
+def extend_to_ground(obstacles: list, a: float, b: float, horizon: int, h: int, p: DetectParams) -> None:
+    """Box extent, ground contact (docs/detection.md "(e) Box extent"): a box whose next row below has a
+    road line value within the road band (+ foot_slack_px) below the obstacle's disparity ends at the
+    last row where the line is still below that disparity (the last row if it never does)."""
+    if not p.foot_extend:
+        return
+    for o in obstacles:
+        x0, y0, x1, y1 = o.box
+        below = y1 + 1
+        if below >= h or below < horizon or (y1 >= horizon and a * y1 + b >= o.disparity_px):
+            continue
+        line = a * below + b
+        if line < o.disparity_px - (p.road_tolerance_px + p.road_tolerance_rel * max(line, 0.0)) - p.foot_slack_px - 1e-9:
+            continue
+        foot = y1  # the last row where the line is still below d: the obstacle's lowest row
+        while foot + 1 < h and a * (foot + 1) + b < o.disparity_px:
+            foot += 1
+        o.box = (x0, y0, x1, max(y1, foot))
+
+
+def trim_sparse_columns(obstacles: list, ol: np.ndarray, calib: dict, p: DetectParams,
+                        sky: np.ndarray | None = None, disp: np.ndarray | None = None) -> None:
+    """Box extent, sparse and low sides: the outermost columns of each box holding fewer of the obstacle's
+    pixels (ol == id + 1) than trim_col_min_share of its fullest column, or whose top (highest own pixel,
+    or sky pixel within max(cc_min_step_px, cc_max_rel_step * d) of the obstacle's disparity) lies below
+    y0 + trim_col_top_share * height, are cut; the cut pixels leave ol, box rows, pixel count and lateral X
+    follow (distance unchanged)."""
+    if p.trim_col_min_share <= 0 and p.trim_col_top_share <= 0:
+        return
+    for o in obstacles:
+        x0, y0, x1, y1 = o.box
+        on = ol[y0:y1 + 1, x0:x1 + 1] == o.id + 1
+        cols = on.sum(axis=0)
+        bad = cols < p.trim_col_min_share * cols.max()
+        if p.trim_col_top_share > 0:
+            top_on = on.copy()
+            if sky is not None and disp is not None:
+                tol = max(p.cc_min_step_px, p.cc_max_rel_step * o.disparity_px)
+                with np.errstate(invalid="ignore"):
+                    top_on |= (sky[y0:y1 + 1, x0:x1 + 1] > 0) & (np.abs(disp[y0:y1 + 1, x0:x1 + 1] - o.disparity_px) <= tol + 1e-9)
+            tops = np.where(top_on.any(axis=0), top_on.argmax(axis=0), y1 - y0 + 1) + y0
+            bad |= tops > y0 + p.trim_col_top_share * (y1 - y0 + 1)
+        a, b = 0, len(cols) - 1
+        while a < b and bad[a]:
+            a += 1
+        while b > a and bad[b]:
+            b -= 1
+        if a == 0 and b == len(cols) - 1:
+            continue
+        sub = ol[y0:y1 + 1, x0:x1 + 1]
+        cut = on.copy()
+        cut[:, a:b + 1] = False
+        sub[cut] = 0
+        ys, xs = np.nonzero(sub == o.id + 1)
+        o.box = (x0 + a, y0 + int(ys.min()), x0 + b, y0 + int(ys.max()))
+        o.pixel_count = len(xs)
+        o.lateral_m = (0.5 * (o.box[0] + o.box[2]) - calib["cx"]) * o.distance_m / calib["focal_px"]
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy."""
@@ -654,6 +713,9 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         o.id = rank
         ol[comp == comp_ids[i]] = rank + 1
         out.append(o)
+    trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
+    if found:
+        extend_to_ground(out, a, b, horizon, h, p)
     return DetectReferenceResult(bins, vd, found, a, b, horizon, road_raw, road, skipped, rows, sky,
                                  cand.astype(np.uint8), centres, np.where(labels >= 0, labels, 255).astype(np.uint8),
                                  kept, out, ol)
