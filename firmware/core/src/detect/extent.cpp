@@ -5,8 +5,8 @@
 // small obstacle the IoU >= 0.5 of a detection. Ground contact: the obstacle of median disparity d
 // stands on the road where the line reaches d, so a box whose bottom row lies in the band of d (or
 // up to foot_slack_px more above it) is extended down to the last row above the one where the line
-// reaches d (the image's last row when the line stays below d there: the foot is outside the image). Integer: Q4 line table and Q4 band, as in
-// road_pixels.
+// reaches d (the image's last row when the line stays below d there: the foot is outside the
+// image). Integer: Q4 line table and Q4 band, as in road_pixels.
 #include <algorithm>
 #include <climits>
 #include <cstdlib>
