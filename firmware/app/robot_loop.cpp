@@ -89,7 +89,7 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m;
   int moving_min_hits;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
@@ -103,6 +103,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.moving_min_travel_m = v.num("loop.moving_min_travel_m");
   p.near_track_m = v.num("loop.near_track_m");
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
+  p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
   return p;
 }
 
@@ -549,6 +550,14 @@ LoopResult RobotLoop::run() {
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
               dist > tr.radius_m + I.rp.radius_m)
             obstacles.push_back({tr.pos(), tr.radius_m, {}});
+          else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
+                   robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
+            // Older and out of view: where it could be now — its last measured position, grown by
+            // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
+            const double grown = tr.radius_m + std::min(robot::norm(o.vel) * age_s, lp.near_track_reach_cap_m);
+            const double dl = robot::norm(tr.last_meas_p - pose.pos());
+            if (dl <= lp.near_track_m + grown && dl > grown + I.rp.radius_m) obstacles.push_back({tr.last_meas_p, grown, {}});
+          }
           continue;
         }
         obstacles.push_back(o);
