@@ -554,9 +554,10 @@ LoopResult RobotLoop::run() {
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
             // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
-            const double grown = tr.radius_m + std::min(robot::norm(o.vel) * age_s, lp.near_track_reach_cap_m);
-            const double dl = robot::norm(tr.last_meas_p - pose.pos());
-            if (dl <= lp.near_track_m + grown && dl > grown + I.rp.radius_m) obstacles.push_back({tr.last_meas_p, grown, {}});
+            CircleObstacle reach;
+            if (robot::reachable_set(tr.last_meas_p, tr.radius_m, robot::norm(o.vel), age_s, lp.near_track_reach_cap_m,
+                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach))
+              obstacles.push_back(reach);
           }
           continue;
         }

@@ -310,6 +310,15 @@ Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, dou
   return integrate_pose(pose, current, latency_s);
 }
 
+bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
+                   double robot_radius, double near_m, CircleObstacle& out) {
+  const double grown = r + std::min(std::max(0.0, speed * age_s), std::max(0.0, cap_m));
+  const double dl = norm(last_p - robot_pos);
+  if (dl > near_m + grown || dl <= grown + robot_radius) return false;
+  out = {last_p, grown, {}};
+  return true;
+}
+
 double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal, double radius,
                             double resolution_m) {
   // Free space: centre farther than r_i + radius from every circle centre.

@@ -53,6 +53,20 @@ TEST(Planner, LatencyCompensationPredictsPoseAndObstacles) {
   EXPECT_EQ(same[0].c.x, 2.0);
 }
 
+// An out-of-view mover's reachable set: grown by speed x age up to the cap; none when it is out of
+// reach or already holds the robot.
+TEST(Planner, ReachableSetOfACoastingTrack) {
+  CircleObstacle o;
+  ASSERT_TRUE(reachable_set({1.0, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));
+  EXPECT_NEAR(o.r, 0.4, 1e-12);  // 0.2 + 0.1 m/s x 2 s
+  EXPECT_EQ(o.c.x, 1.0);
+  EXPECT_EQ(o.vel.x, 0.0);
+  ASSERT_TRUE(reachable_set({1.5, 0.0}, 0.2, 0.3, 8.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));
+  EXPECT_NEAR(o.r, 0.8, 1e-12);  // capped at 0.6
+  EXPECT_FALSE(reachable_set({3.0, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));  // beyond near + grown
+  EXPECT_FALSE(reachable_set({0.5, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));  // would hold the robot
+}
+
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {
   EXPECT_NEAR(shortest_path_length({}, {0, 0}, {3, 4}, 0.2), 5.0, 1e-9);
 }

@@ -60,6 +60,13 @@ class Planner {
 Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, double latency_s,
                                std::vector<CircleObstacle>& obstacles);
 
+// Reachable set of an obstacle last measured at `last_p` (radius r) moving at `speed`, `age_s` ago:
+// a circle at last_p grown by speed * age_s, at most cap_m. Returned (true) only when it lies within
+// reach of the robot (centre distance <= near_m + grown) and does not already hold the
+// robot (centre distance > grown + robot_radius: a set that holds the robot leaves no arc).
+bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
+                   double robot_radius, double near_m, CircleObstacle& out);
+
 // Length of the shortest path for a disc of radius `radius` from start to goal among static
 // circles (their velocities are ignored), or +infinity when none exists. Any-angle search
 // (Theta*) on a grid of `resolution_m` whose line-of-sight test is exact geometry (segment-to-circle
