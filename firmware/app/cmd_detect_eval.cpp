@@ -20,6 +20,7 @@
 #include "detect_io.hpp"
 #include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/matcher.hpp"
+#include "fuzzystereo/stages.hpp"
 #include "io.hpp"
 
 namespace fs::app {
@@ -218,8 +219,29 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
 // d*256 with 0 = invalid would lose valid d = 0). DIR/matcher_config.toml records the matcher
 // parameters the maps were made with; a different matcher config is refused (the cache would lie).
 // Use: tuning detection parameters without re-running the matcher on every evaluation.
+// The cache always holds the sparse ESR map (MatchResult::disp_esr, before [densify]); DIR/disparity_map.txt
+// says so ("esr"; a cache without it predates the file and holds ESR maps too). With [detect] input =
+// "dense", the densify stage is applied to the map after reading: densify() is a pure function of the ESR
+// map and [densify], exactly what the matcher runs (matcher.cpp), so the result is bit-identical to the
+// matcher's disp_final, and one cache serves every [densify] setting. The recorded matcher config therefore
+// carries [densify] at its defaults with enabled = false (the settings the ESR maps are independent of).
+constexpr const char* kCacheMap = "esr";
+
 void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml) {
   stdfs::create_directories(dir);
+  const stdfs::path mp = dir / "disparity_map.txt";
+  if (stdfs::exists(mp)) {
+    std::ifstream f(mp);
+    std::string have;
+    f >> have;
+    if (have != kCacheMap)
+      throw UserError("--disparity-cache '" + dir.string() + "' holds the '" + have + "' map (" + mp.string() +
+                      "), this program caches the 'esr' map; use another directory or delete it");
+  } else {
+    std::ofstream f(mp);
+    f << kCacheMap << "\n";
+    if (!f) throw UserError("cannot write '" + mp.string() + "'");
+  }
   const stdfs::path p = dir / "matcher_config.toml";
   if (stdfs::exists(p)) {
     std::ifstream f(p);
@@ -275,10 +297,18 @@ void run_detect_eval(const EvalOptions& o) {
     cfg.matcher.cost.max_disparity = std::clamp(round_up_16(meta["max_disparity"].get<int>()), 16, 256);
   const DetectParams dp = detect_params_from(cfg.values);
   const Detector detector(dp);
+  // [detect] input: the matcher runs without densify (its ESR map is what the cache holds); on the dense
+  // input, densify() is applied below to the ESR map, fresh or cached (see check_cache_config).
+  const DetectInput input = detect_input_from(cfg.values);
+  const bool densify_after = !o.oracle && input == DetectInput::Dense && cfg.matcher.densify.enabled;
+  MatcherParams esr_params = detection_matcher_params(cfg.matcher, DetectInput::Esr);
+  esr_params.densify = DensifyParams{};
+  esr_params.densify.enabled = false;
   std::unique_ptr<Matcher> matcher;
-  if (!o.oracle) matcher = std::make_unique<Matcher>(detection_matcher_params(cfg.matcher), load_fis_definition(""));
+  if (!o.oracle) matcher = std::make_unique<Matcher>(esr_params, load_fis_definition(""));
   const bool use_cache = !o.oracle && !o.disparity_cache.empty();
-  if (use_cache) check_cache_config(o.disparity_cache, config_to_toml(cfg.matcher));
+  if (use_cache) check_cache_config(o.disparity_cache, config_to_toml(esr_params));
+  double densify_ms = 0;  // all frames, also cached ones
   bool timed = !o.oracle;  // false once a frame's disparity came from the cache (no matcher timing)
 
   std::map<std::string, Tally> per_type;
@@ -317,10 +347,16 @@ void run_detect_eval(const EvalOptions& o) {
       const cv::Mat rc = read_image((tr / "image_3" / (s + ".png")).string(), cv::IMREAD_COLOR);
       if (rc.size() != lc.size()) throw UserError("frame " + s + ": left and right sizes differ");
       const MatchResult mr = matcher->match(to_core_gray(lc), to_core_gray(rc));
-      disp = mr.disp_esr;  // the detector is tuned on the sparse ESR map, not the densified one
+      disp = mr.disp_esr;
       mt = mr.timings;
       frame_matched = true;
       if (use_cache) write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
+    }
+    if (densify_after) {
+      const auto t0 = std::chrono::steady_clock::now();
+      disp = densify(disp, cfg.matcher.densify, nullptr);
+      mt.ms[std::size_t(Stage::Densify)] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      densify_ms += mt.ms[std::size_t(Stage::Densify)];
     }
     if (disp.width != lc.cols || disp.height != lc.rows) throw UserError("frame " + s + ": disparity size differs from the image");
     const DetectResult r = detector.detect(disp, to_core_rgb(lc), calib);
@@ -346,7 +382,8 @@ void run_detect_eval(const EvalOptions& o) {
 
   std::printf("detect-eval: %s, %zu frames, disparity from %s; detected = IoU >= %.2f and |dZ|/Z <= %.0f %%, "
               "don't care below %d visible px\n",
-              o.dataset.c_str(), stems.size(), o.oracle ? "ground truth (oracle)" : "the matcher", o.min_iou,
+              o.dataset.c_str(), stems.size(),
+              o.oracle ? "ground truth (oracle)" : (densify_after ? "the matcher, densified" : "the matcher, ESR (sparse)"), o.min_iou,
               o.max_rel_dist * 100, o.min_visible);
   std::printf("%-16s %6s %5s %7s %7s %7s %7s %7s %8s %8s %9s %9s %6s\n", "type", "frames", "GT", "det%", "box%", "FP/fr",
               "roadIoU", "skyIoU", "dZ med%", "dZ p90%", "match ms", "detect ms", "ratio");
@@ -354,6 +391,7 @@ void run_detect_eval(const EvalOptions& o) {
   out["format"] = "fuzzystereo-detect-eval";
   out["dataset"] = o.dataset;
   out["oracle_disparity"] = o.oracle;
+  out["input"] = o.oracle ? "ground truth" : detect_input_name(input);
   out["disparity_cache"] = use_cache ? nlohmann::json(o.disparity_cache) : nlohmann::json(nullptr);
   out["criteria"] = {{"min_iou", o.min_iou}, {"max_rel_distance", o.max_rel_dist}, {"min_visible_pixels", o.min_visible}};
   out["config_toml"] = config_to_toml(cfg.values);
@@ -370,6 +408,11 @@ void run_detect_eval(const EvalOptions& o) {
   };
   for (const auto& [name, t] : per_type) out["per_type"][name] = row(name, t);
   out["overall"] = row("overall", all);
+  if (densify_after) {
+    out["densify_ms_per_frame"] = densify_ms / double(stems.size());
+    std::printf("densify (input = dense, run on the ESR map after the matcher or the cache): %.2f ms/frame\n",
+                densify_ms / double(stems.size()));
+  }
   out["frames"] = frames;
   if (!o.json.empty()) {
     std::ofstream f(o.json);

@@ -9,16 +9,30 @@
 #include "fuzzystereo/calib.hpp"
 #include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/image.hpp"
+#include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/params.hpp"
+#include "config.hpp"
 
 namespace fs::app {
 
-// The matcher settings for a detection consumer (detect, detect-eval, the robot loop): the detector
-// is tuned on the sparse ESR map (MatchResult::disp_esr), so the densify stage, which only serves
-// the dense disparity output, is switched off there and costs nothing per frame.
-inline MatcherParams detection_matcher_params(MatcherParams p) {
-  p.densify.enabled = false;
+// The disparity map detection reads ([detect] input, docs/detection.md "Input map"): the paper's
+// sparse map after ESR (MatchResult::disp_esr) or the map after the densify stage (disp_final).
+enum class DetectInput { Esr, Dense };
+inline DetectInput detect_input_from(const ConfigValues& v) {
+  return v.str("detect.input") == "dense" ? DetectInput::Dense : DetectInput::Esr;
+}
+inline const char* detect_input_name(DetectInput in) { return in == DetectInput::Dense ? "dense" : "esr"; }
+
+// The matcher settings for a detection consumer (detect, detect-eval, the robot loop): on the sparse
+// ESR input the densify stage, which then serves nothing, is switched off and costs nothing per frame;
+// on the dense input [densify] runs as configured.
+inline MatcherParams detection_matcher_params(MatcherParams p, DetectInput in) {
+  if (in == DetectInput::Esr) p.densify.enabled = false;
   return p;
+}
+// The map of a match result that detection reads.
+inline const ImageI16& detection_disparity(const MatchResult& r, DetectInput in) {
+  return in == DetectInput::Dense ? r.disp_final : r.disp_esr;
 }
 
 // --calib FILE: JSON ({"focal_px", "baseline_m", "cx", "cy"[, "height_m", "pitch_deg"]}, at the top

@@ -325,7 +325,8 @@ LoopResult RobotLoop::run() {
   robot::install_stop_signal_handlers();
 
   // ---- pipeline ----
-  const Matcher matcher(detection_matcher_params(I.cfg.matcher), load_fis_definition(""));
+  const DetectInput det_input = detect_input_from(I.cfg.values);
+  const Matcher matcher(detection_matcher_params(I.cfg.matcher, det_input), load_fis_definition(""));
   const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
@@ -489,13 +490,14 @@ LoopResult RobotLoop::run() {
 
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
-    const DetectResult det = detector.detect(mr.disp_esr, rgb_left, I.calib);
+    const ImageI16& det_disp = detection_disparity(mr, det_input);  // [detect] input
+    const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
     stage_ms["detect"].push_back(wall_ms_since(s1));
 
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
-    measurements_of(det, mr.disp_esr, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
+    measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
@@ -737,7 +739,7 @@ LoopResult RobotLoop::run() {
         std::snprintf(stem, sizeof stem, "%06d", frame);
         const stdfs::path base = stdfs::path(opt.record_dir) / "frames";
         write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
-        const cv::Mat dispf = disp_q4_to_float(mr.disp_esr);
+        const cv::Mat dispf = disp_q4_to_float(detection_disparity(mr, det_input));
         write_image((base / (std::string(stem) + "_disp.png")).string(),
                     colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
         fj["snapshot"] = std::string("frames/") + stem;
