@@ -106,11 +106,39 @@ const FisLut& test_lut() {
   return *FisLut::cached(load_fis_definition(""), 257);
 }
 
+// The compact candidate index of a (fast) result lists, per segment in ascending order, exactly the
+// disparities marked in nmi_valid, and the WTA reading it decides as the WTA scanning nmi_valid.
+void expect_candidate_index(const SegmentCosts& c) {
+  const int K = c.candidates_per_segment, D = c.disparities;
+  if (K == 0) {
+    EXPECT_TRUE(c.candidates.empty());
+    return;
+  }
+  ASSERT_EQ(c.candidates.size(), std::size_t(c.segments) * std::size_t(K));
+  for (int s = 0; s < c.segments; ++s) {
+    std::vector<std::int16_t> marked;
+    for (int d = 0; d < D; ++d)
+      if (c.nmi_valid[std::size_t(s) * std::size_t(D) + std::size_t(d)]) marked.push_back(static_cast<std::int16_t>(d));
+    const std::vector<std::int16_t> listed(c.candidates.begin() + std::ptrdiff_t(s) * K,
+                                           c.candidates.begin() + std::ptrdiff_t(s + 1) * K);
+    ASSERT_EQ(listed, marked) << "segment " << s;
+  }
+  SegmentCosts scan = c;  // without the index: the WTA scans nmi_valid over all D
+  scan.candidates.clear();
+  scan.candidates_per_segment = 0;
+  CostParams p;
+  p.subpixel = true;
+  const SegmentDecision a = fis_winner_take_all(c, test_lut(), p), b = fis_winner_take_all(scan, test_lut(), p);
+  EXPECT_EQ(a.disparity_q4, b.disparity_q4);
+  EXPECT_EQ(a.score, b.score);
+}
+
 void expect_same(const SegmentCosts& a, const SegmentCosts& b) {
   EXPECT_EQ(a.ncc, b.ncc);
   EXPECT_EQ(a.igsad, b.igsad);
   EXPECT_EQ(a.nmi_valid, b.nmi_valid);
   EXPECT_EQ(a.nmi, b.nmi);
+  expect_candidate_index(a);
 }
 
 TEST(SegmentCosts, BitExactAgainstScalarReference) {

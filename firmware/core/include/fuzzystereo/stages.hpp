@@ -42,6 +42,9 @@ Segmentation segmentation_from_labels(ImageI32 labels);
 // Per segment and disparity: the two FIS inputs in Q16. Layout [segment * D + d].
 //   dc1 = max(0, NCC) (eq. 1, 8); dc2 = alpha*NMI + (1-alpha)*IGSAD (eq. 2-7, 9).
 // nmi_valid[s*D+d] = 1 where NMI was evaluated (candidates), 0 where it was skipped.
+// With nmi_candidates = K < D, candidates[s*K + k] lists the same K disparities of segment s in
+// ascending order (a compact index of nmi_valid, so the WTA reads K entries, not D); empty when
+// every disparity is evaluated.
 struct SegmentCosts {
   int segments = 0;
   int disparities = 0;
@@ -49,6 +52,8 @@ struct SegmentCosts {
   std::vector<std::uint32_t> igsad;   // Q16
   std::vector<std::uint32_t> nmi;     // Q16 (0 where not evaluated)
   std::vector<std::uint8_t> nmi_valid;
+  int candidates_per_segment = 0;     // K, or 0 when candidates is empty
+  std::vector<std::int16_t> candidates;
 };
 
 // Scratch memory of the cost stage (padded partner rows, ~(W + D) * H * 13 bytes). Reusing one

@@ -139,6 +139,38 @@ void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t*
   }
 }
 
+// eq. (2)-(4) for kNmiGroup (= 4) candidates: sum_c T[c] over the joint histograms (bin of l, bin
+// of the candidate's partner) and over the partners' histograms, by one pass of increments
+// c -> c + 1, each adding DT[c] = T[c + 1] - T[c] (telescoping, exact). Sums in local registers,
+// not arrays: kept in memory, each += would be a store-to-load chain per pixel.
+static_assert(kNmiGroup == 4, "nmi_group_sums is written for 4 candidates");
+void nmi_group_sums(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
+                    std::uint32_t* __restrict joint, std::uint32_t* __restrict hy, const std::uint32_t* __restrict DT,
+                    std::uint64_t* sum_txy, std::uint64_t* sum_ty) {
+  const std::size_t BB = std::size_t(B) * std::size_t(B);
+  std::uint32_t* __restrict j0 = joint;
+  std::uint32_t* __restrict j1 = joint + BB;
+  std::uint32_t* __restrict j2 = joint + 2 * BB;
+  std::uint32_t* __restrict j3 = joint + 3 * BB;
+  const std::uint8_t *b0 = bin[0], *b1 = bin[1], *b2 = bin[2], *b3 = bin[3];
+  std::uint64_t x0 = 0, x1 = 0, x2 = 0, x3 = 0, y0 = 0, y1 = 0, y2 = 0, y3 = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t off = static_cast<std::size_t>(px[i].off);
+    const std::size_t row = std::size_t(px[i].bx) * std::size_t(B);
+    const std::size_t c0 = b0[off], c1 = b1[off], c2 = b2[off], c3 = b3[off];
+    std::uint32_t& a0 = j0[row + c0]; x0 += DT[a0]; ++a0;
+    std::uint32_t& a1 = j1[row + c1]; x1 += DT[a1]; ++a1;
+    std::uint32_t& a2 = j2[row + c2]; x2 += DT[a2]; ++a2;
+    std::uint32_t& a3 = j3[row + c3]; x3 += DT[a3]; ++a3;
+    std::uint32_t& h0 = hy[c0]; y0 += DT[h0]; ++h0;
+    std::uint32_t& h1 = hy[std::size_t(B) + c1]; y1 += DT[h1]; ++h1;
+    std::uint32_t& h2 = hy[2 * std::size_t(B) + c2]; y2 += DT[h2]; ++h2;
+    std::uint32_t& h3 = hy[3 * std::size_t(B) + c3]; y3 += DT[h3]; ++h3;
+  }
+  sum_txy[0] = x0; sum_txy[1] = x1; sum_txy[2] = x2; sum_txy[3] = x3;
+  sum_ty[0] = y0; sum_ty[1] = y1; sum_ty[2] = y2; sum_ty[3] = y3;
+}
+
 // Partner-only sums of one run for all d, from the row prefix sums: O[lo + d .. hi + d).
 FS_TARGET_CLONES
 void accumulate_run(const std::int32_t* __restrict pre, const std::int32_t* __restrict pre2, int lo, int hi,
@@ -204,12 +236,31 @@ void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, cons
   }
 }
 
+// Lower bound of the K-th largest prescore: the smallest of the maxima of K disjoint chunks (K
+// values, one per chunk, are >= it). Branch-free max over each chunk (vectorises); 0 when D < 2K.
+FS_TARGET_CLONES
+std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, int K) {
+  if (D < 2 * K) return 0;
+  const int chunk = D / K;
+  std::uint32_t thr = 0xFFFFFFFFu;
+  for (int k = 0; k < K; ++k) {
+    std::uint32_t m = 0;
+    for (int d = k * chunk; d < (k + 1) * chunk; ++d) m = std::max(m, prescore[d]);
+    thr = std::min(thr, m);
+  }
+  return thr;
+}
+
 // The K best disparities by (prescore desc, d asc), best first: one pass keeping a sorted list of
 // K (most disparities lose against the K-th best with one comparison).
 //   key = prescore * 2^32 + (2^32 - 1 - d): larger key = better, ties -> smaller d.
+// Disparities below top_k_threshold cannot be among the K best (at least K prescores reach it) and
+// are skipped with one well-predicted comparison; the result is that of the full pass.
 void top_k(const std::uint32_t* prescore, int D, int K, std::uint64_t* best, int* order) {
+  const std::uint32_t thr = top_k_threshold(prescore, D, K);
   int m = 0;
   for (int d = 0; d < D; ++d) {
+    if (prescore[d] < thr) continue;
     const std::uint64_t key = (std::uint64_t(prescore[d]) << 32) | (0xFFFFFFFFu - static_cast<std::uint32_t>(d));
     if (m == K && key <= best[K - 1]) continue;
     int j = m < K ? m++ : K - 1;
@@ -257,7 +308,13 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
   std::int32_t max_pixels = 0;
   for (auto n : seg.pixels) max_pixels = std::max(max_pixels, n);
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(max_pixels));
+  // DT[c] = T[c + 1] - T[c] (Q16, < (log2(c + 1) + 1.45) * 2^16 < 2^32): the change of sum_c T[c]
+  // when one count goes c -> c + 1.
+  std::vector<std::uint32_t> DT(T.size() > 1 ? T.size() - 1 : 1, 0);
+  for (std::size_t i = 0; i + 1 < T.size(); ++i) DT[i] = static_cast<std::uint32_t>(T[i + 1] - T[i]);
   const int K = (p.nmi_candidates <= 0 || p.nmi_candidates >= D) ? D : p.nmi_candidates;
+  c.candidates_per_segment = K < D ? K : 0;
+  c.candidates.resize(K < D ? std::size_t(seg.count) * std::size_t(K) : 0);
   const auto base_of = [&](int x) { return (direction > 0 ? w - 1 - x : x) + (shift > 0 ? shift : 0); };
 
   const int nt = detail::resolve_threads(threads);
@@ -367,39 +424,38 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
       if (K < D) {
         prescore_nearest(fis, c.ncc.data() + off, c.igsad.data() + off, D, prescore.data());
         top_k(prescore.data(), D, K, best.data(), order.data());
+        std::int16_t* cand = c.candidates.data() + std::size_t(s) * std::size_t(K);
+        for (int k = 0; k < K; ++k) cand[k] = static_cast<std::int16_t>(order[std::size_t(k)]);
+        std::sort(cand, cand + K);
       } else {
         std::iota(order.begin(), order.end(), 0);
       }
 
       // eq. (2)-(4): NMI from the joint histogram, kNmiGroup candidates per pass over the pixel
-      // list (independent histograms, so their increment chains overlap). Two passes: count, then
-      // sum T[c] over the bins that were hit (each bin read once and cleared on the way, so the
-      // histograms are all-zero again for the next group). A short last group repeats its last
+      // list (independent histograms, so their increment chains overlap). One pass: each increment
+      // c -> c + 1 adds DT[c] = T[c + 1] - T[c] to the running sum of T over the histogram, which
+      // telescopes to sum_c T[c] exactly (integers). The histograms are then cleared, by a memset
+      // when that is shorter than revisiting the hit bins. A short last group repeats its last
       // candidate; the repeats are not stored.
       const std::uint64_t un = static_cast<std::uint64_t>(n);
       const std::uint64_t H_x = detail::entropy_q16(T, un, sum_tx);
       const std::size_t BB = std::size_t(B) * std::size_t(B);
+      const bool clear_by_memset = px.size() * 2 >= BB / 8;
       for (int k0 = 0; k0 < K; k0 += kNmiGroup) {
         const std::uint8_t* bin[kNmiGroup];
         for (int j = 0; j < kNmiGroup; ++j) bin[j] = pr.bin.data() + order[std::size_t(std::min(k0 + j, K - 1))];
-        for (const SegPixel& q : px) {
-          for (int j = 0; j < kNmiGroup; ++j) {
-            const int by = bin[j][q.off];
-            ++joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)];
-            ++hy[std::size_t(j * B + by)];
-          }
-        }
-        std::uint64_t sum_txy[kNmiGroup] = {}, sum_ty[kNmiGroup] = {};
-        for (const SegPixel& q : px) {
-          for (int j = 0; j < kNmiGroup; ++j) {
-            const int by = bin[j][q.off];
-            std::uint32_t& cxy = joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)];
-            sum_txy[j] += T[cxy];
-            cxy = 0;
-            std::uint32_t& cy = hy[std::size_t(j * B + by)];
-            sum_ty[j] += T[cy];
-            cy = 0;
-          }
+        std::uint64_t sum_txy[kNmiGroup], sum_ty[kNmiGroup];
+        nmi_group_sums(px.data(), px.size(), bin, B, joint.data(), hy.data(), DT.data(), sum_txy, sum_ty);
+        if (clear_by_memset) {
+          std::memset(joint.data(), 0, joint.size() * sizeof(std::uint32_t));
+          std::memset(hy.data(), 0, hy.size() * sizeof(std::uint32_t));
+        } else {
+          for (const SegPixel& q : px)
+            for (int j = 0; j < kNmiGroup; ++j) {
+              const int by = bin[j][q.off];
+              joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)] = 0;
+              hy[std::size_t(j * B + by)] = 0;
+            }
         }
         for (int j = 0; j < kNmiGroup && k0 + j < K; ++j) {
           const int d = order[std::size_t(k0 + j)];

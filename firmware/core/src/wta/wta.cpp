@@ -18,6 +18,10 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   const auto alpha_q16 = static_cast<std::uint32_t>(std::llround(p.alpha * kQ16One));
   SegmentDecision dec;
   const std::size_t n = std::size_t(costs.segments);
+  const int K = costs.candidates_per_segment > 0 &&
+                        costs.candidates.size() == n * std::size_t(costs.candidates_per_segment)
+                    ? costs.candidates_per_segment
+                    : 0;
   dec.disparity.assign(n, kInvalidDisp);
   dec.disparity_q4.assign(n, kInvalidDisp);
   dec.score.assign(n, 0);
@@ -30,18 +34,24 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   for (std::size_t s = 0; s < n; ++s) {
     const std::size_t off = s * std::size_t(D);
     std::int64_t best = -1;
-    for (int d = 0; d < D; ++d) {
+    auto consider = [&](int d) {
       const std::size_t i = off + std::size_t(d);
-      if (!costs.nmi_valid[i]) continue;  // not a candidate
       const std::uint32_t dc2 = data_cost2_q16(costs.nmi[i], costs.igsad[i], alpha_q16);
       const std::uint32_t score = fis.lookup(costs.ncc[i], dc2);
-      if (std::int64_t(score) > best) {  // strict: ties keep the smaller d
+      if (std::int64_t(score) > best) {  // strict, in ascending d: ties keep the smaller d
         best = score;
         dec.disparity[s] = static_cast<std::int16_t>(d);
         dec.score[s] = score;
         dec.dc1[s] = costs.ncc[i];
         dec.dc2[s] = dc2;
       }
+    };
+    if (K > 0) {  // the candidate index (ascending d): the same disparities as nmi_valid
+      const std::int16_t* cand = costs.candidates.data() + s * std::size_t(K);
+      for (int k = 0; k < K; ++k) consider(cand[k]);
+    } else {
+      for (int d = 0; d < D; ++d)
+        if (costs.nmi_valid[off + std::size_t(d)]) consider(d);  // else not a candidate
     }
     const int d = dec.disparity[s];
     if (d < 0) continue;
