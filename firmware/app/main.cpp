@@ -7,11 +7,13 @@
 
 #include "commands.hpp"
 #include "fuzzystereo/capture/camera.hpp"
+#include "fuzzystereo/memory.hpp"
 #include "fuzzystereo/robot/motors.hpp"
 #include "config.hpp"
 #include "io.hpp"
 
 int main(int argc, char** argv) {
+  fs::retain_freed_memory();  // per-frame buffers reuse mapped memory (fuzzystereo/memory.hpp)
   CLI::App app{"fuzzystereo " FS_VERSION " — multi-cost fuzzy stereo matching for a stereo robot"};
   app.require_subcommand(1);
   app.set_version_flag("--version", FS_VERSION);

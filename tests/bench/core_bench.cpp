@@ -13,6 +13,7 @@
 #include "config.hpp"
 #include "fuzzystereo/fis.hpp"
 #include "fuzzystereo/matcher.hpp"
+#include "fuzzystereo/memory.hpp"
 #include "fuzzystereo/stages.hpp"
 
 namespace {
@@ -140,4 +141,12 @@ BENCHMARK(BM_Matcher)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+// BENCHMARK_MAIN with the program's memory policy (fuzzystereo/memory.hpp), as `fuzzystereo` runs.
+int main(int argc, char** argv) {
+  fs::retain_freed_memory();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -9,6 +9,7 @@
 
 #include "config.hpp"
 #include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
 
 namespace fs {
 namespace {
@@ -109,18 +110,24 @@ TEST(Densify, SpecklesMatchUnionFindReference) {
   }
 }
 
+// With 1 and 3 threads (rows and ray planes are split between threads).
 TEST(Densify, MedianFillMatchesRayWalkReference) {
-  for (unsigned seed = 11; seed <= 16; ++seed) {
-    const int w = 41 + 2 * static_cast<int>(seed % 5), h = 23 + 2 * static_cast<int>(seed % 3);
-    for (int pct : {10, 60, 95}) {
-      const ImageI16 d = blocky_disp(w, h, seed * 7 + pct, pct);
-      ImageU8 filled;
-      const ImageI16 out = median_fill(d, &filled);
-      ASSERT_EQ(out.data, fill_reference(d).data) << "seed " << seed << " invalid " << pct << "%";
-      for (std::size_t i = 0; i < d.data.size(); ++i)
-        EXPECT_EQ(filled.data[i], d.data[i] == kInvalidDisp && out.data[i] != kInvalidDisp ? 1 : 0);
+  for (int threads : {1, 3}) {
+    detail::use_threads(threads);
+    for (unsigned seed = 11; seed <= 16; ++seed) {
+      const int w = 41 + 2 * static_cast<int>(seed % 5), h = 23 + 2 * static_cast<int>(seed % 3);
+      for (int pct : {10, 60, 95}) {
+        const ImageI16 d = blocky_disp(w, h, seed * 7 + pct, pct);
+        ImageU8 filled;
+        const ImageI16 out = median_fill(d, &filled);
+        ASSERT_EQ(out.data, fill_reference(d).data)
+            << "seed " << seed << " invalid " << pct << "% threads " << threads;
+        for (std::size_t i = 0; i < d.data.size(); ++i)
+          EXPECT_EQ(filled.data[i], d.data[i] == kInvalidDisp && out.data[i] != kInvalidDisp ? 1 : 0);
+      }
     }
   }
+  detail::use_threads(0);
 }
 
 TEST(Densify, AllInvalidStaysInvalidAndLeftBorderTakesRightNeighbour) {

@@ -122,101 +122,85 @@ void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out) {
   }
 }
 
-// One top-down row of a ray with dy = +1: o[x] = s[x] if valid, else the previous row's ray at
-// x - dx (kNone where that lies outside the image or on the first row).
-void ray_row_down(const std::int16_t* s, const std::int16_t* prev, int dx, int w, std::int16_t* o) {
-  if (!prev) {
-    for (int x = 0; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
-    return;
-  }
-  const int x_lo = std::max(0, dx), x_hi = std::min(w, w + dx);
-  for (int x = 0; x < x_lo; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
-  for (int x = x_lo; x < x_hi; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : prev[x - dx];
-  for (int x = x_hi; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
-}
-
 }  // namespace
 
-// The rays pointing up (dy = -1) are stored as planes from one bottom-up pass; the horizontal rays
-// and those pointing down are kept as row buffers during the top-down pass that fills. Per row, the
-// 8 ray values of the pixels without an estimate are gathered into 8 short arrays and sorted there
-// by the network (vectorised across pixels), so valid pixels cost nothing.
+// The six rays with a vertical step are stored as planes (independent scans, run in parallel); the
+// two horizontal rays are row buffers. Per row, the 8 ray values of the pixels without an estimate
+// are gathered into 8 short arrays and sorted there by the network (vectorised across pixels), so
+// valid pixels cost nothing. Rows are then independent and filled in parallel.
 ImageI16 median_fill(const ImageI16& disp, ImageU8* filled) {
   const int w = disp.width, h = disp.height;
   ImageI16 out = disp;
   if (filled) *filled = ImageU8(w, h, 0);
   if (disp.empty()) return out;
   const std::size_t n = static_cast<std::size_t>(w) * h, uw = static_cast<std::size_t>(w);
-  // kDirs 3, 6, 7 have dy = -1: computed bottom-up, whole planes.
-  std::vector<std::int16_t> up(3 * n);
-  scan_ray(disp, kDirs[3][0], kDirs[3][1], up.data());
-  scan_ray(disp, kDirs[6][0], kDirs[6][1], up.data() + n);
-  scan_ray(disp, kDirs[7][0], kDirs[7][1], up.data() + 2 * n);
-  // kDirs 2, 4, 5 have dy = +1: row buffers (current and previous row), plus the two horizontal.
-  std::vector<std::int16_t> down(6 * uw), horiz(2 * uw), c(8 * uw);
-  std::vector<std::int32_t> idx(uw);
-  for (int y = 0; y < h; ++y) {
-    const std::int16_t* src = disp.row(y);
-    const int cur = y & 1;
-    for (int j = 0; j < 3; ++j) {
-      const int k = j == 0 ? 2 : (j == 1 ? 4 : 5);
-      std::int16_t* o = down.data() + (std::size_t(j) * 2 + std::size_t(cur)) * uw;
-      const std::int16_t* prev = y > 0 ? down.data() + (std::size_t(j) * 2 + std::size_t(1 - cur)) * uw : nullptr;
-      ray_row_down(src, prev, kDirs[std::size_t(k)][1], w, o);
-    }
-    std::int16_t* from_left = horiz.data();
-    std::int16_t* from_right = horiz.data() + uw;
-    std::int16_t prev = kNone;
-    for (int x = 0; x < w; ++x) from_left[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
-    prev = kNone;
-    for (int x = w - 1; x >= 0; --x) from_right[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
-    // Gather the pixels without an estimate (the left border band takes its own rule).
-    const std::size_t row = static_cast<std::size_t>(y) * uw;
-    std::int16_t* o = out.row(y);
-    int m = 0;
-    for (int x = 0; x < w; ++x) {
-      if (src[x] != kInvalidDisp) continue;
-      if (from_left[x] == kNone && from_right[x] != kNone) {
-        // Left image border band (x < d): nothing to the left can match; extend the row's first
-        // estimate, as the rays from above/below there cross unrelated, farther structure.
-        o[x] = from_right[x];
-        if (filled) filled->at(x, y) = 1;
-        continue;
+  // Planes j = 0..5 hold the rays kDirs[j + 2] (dy = +1 for kDirs 2, 4, 5; dy = -1 for 3, 6, 7).
+  std::vector<std::int16_t> rays(6 * n);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int j = 0; j < 6; ++j)
+    scan_ray(disp, kDirs[std::size_t(j) + 2][0], kDirs[std::size_t(j) + 2][1], rays.data() + std::size_t(j) * n);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel
+#endif
+  {
+    std::vector<std::int16_t> horiz(2 * uw), c(8 * uw);
+    std::vector<std::int32_t> idx(uw);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(static)
+#endif
+    for (int y = 0; y < h; ++y) {
+      const std::int16_t* src = disp.row(y);
+      std::int16_t* from_left = horiz.data();
+      std::int16_t* from_right = horiz.data() + uw;
+      std::int16_t prev = kNone;
+      for (int x = 0; x < w; ++x) from_left[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
+      prev = kNone;
+      for (int x = w - 1; x >= 0; --x) from_right[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
+      // Gather the pixels without an estimate (the left border band takes its own rule).
+      const std::size_t row = static_cast<std::size_t>(y) * uw;
+      std::int16_t* o = out.row(y);
+      int m = 0;
+      for (int x = 0; x < w; ++x) {
+        if (src[x] != kInvalidDisp) continue;
+        if (from_left[x] == kNone && from_right[x] != kNone) {
+          // Left image border band (x < d): nothing to the left can match; extend the row's first
+          // estimate, as the rays from above/below there cross unrelated, farther structure.
+          o[x] = from_right[x];
+          if (filled) filled->at(x, y) = 1;
+          continue;
+        }
+        idx[std::size_t(m++)] = x;
       }
-      idx[std::size_t(m++)] = x;
-    }
-    if (m == 0) continue;
-    const std::int16_t* planes[8] = {from_left,
-                                     from_right,
-                                     down.data() + (0 * 2 + std::size_t(cur)) * uw,
-                                     up.data() + row,
-                                     down.data() + (1 * 2 + std::size_t(cur)) * uw,
-                                     down.data() + (2 * 2 + std::size_t(cur)) * uw,
-                                     up.data() + n + row,
-                                     up.data() + 2 * n + row};
-    std::int16_t* cc[8];
-    for (int k = 0; k < 8; ++k) {
-      cc[k] = c.data() + std::size_t(k) * uw;
-      for (int i = 0; i < m; ++i) cc[k][i] = planes[k][idx[std::size_t(i)]];
-    }
-    for (const auto& e : kSort8) {
-      std::int16_t* a = cc[e[0]];
-      std::int16_t* b = cc[e[1]];
+      if (m == 0) continue;
+      const std::int16_t* planes[8] = {from_left,         from_right,        rays.data() + row,
+                                       rays.data() + n + row, rays.data() + 2 * n + row, rays.data() + 3 * n + row,
+                                       rays.data() + 4 * n + row, rays.data() + 5 * n + row};
+      std::int16_t* cc[8];
+      for (int k = 0; k < 8; ++k) {
+        cc[k] = c.data() + std::size_t(k) * uw;
+        for (int i = 0; i < m; ++i) cc[k][i] = planes[k][idx[std::size_t(i)]];
+      }
+      for (const auto& e : kSort8) {
+        std::int16_t* a = cc[e[0]];
+        std::int16_t* b = cc[e[1]];
+        for (int i = 0; i < m; ++i) {
+          const std::int16_t lo = std::min(a[i], b[i]), hi = std::max(a[i], b[i]);
+          a[i] = lo;
+          b[i] = hi;
+        }
+      }
       for (int i = 0; i < m; ++i) {
-        const std::int16_t lo = std::min(a[i], b[i]), hi = std::max(a[i], b[i]);
-        a[i] = lo;
-        b[i] = hi;
+        int cnt = 0;
+        while (cnt < 8 && cc[cnt][i] != kNone) ++cnt;
+        std::int16_t v = kInvalidDisp;
+        if (cnt > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
+          v = (cnt & 1) ? cc[cnt / 2][i] : static_cast<std::int16_t>((cc[cnt / 2 - 1][i] + cc[cnt / 2][i] + 1) >> 1);
+        const int x = idx[std::size_t(i)];
+        o[x] = v;
+        if (filled && v != kInvalidDisp) filled->at(x, y) = 1;
       }
-    }
-    for (int i = 0; i < m; ++i) {
-      int cnt = 0;
-      while (cnt < 8 && cc[cnt][i] != kNone) ++cnt;
-      std::int16_t v = kInvalidDisp;
-      if (cnt > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
-        v = (cnt & 1) ? cc[cnt / 2][i] : static_cast<std::int16_t>((cc[cnt / 2 - 1][i] + cc[cnt / 2][i] + 1) >> 1);
-      const int x = idx[std::size_t(i)];
-      o[x] = v;
-      if (filled && v != kInvalidDisp) filled->at(x, y) = 1;
     }
   }
   return out;
