@@ -193,6 +193,28 @@ TEST(SegmentCosts, OversizedSegmentsUseTheExactWidePath) {
                                 test_lut()));
 }
 
+// The widest image the Matcher accepts at the largest D, partner rows all 255: the row prefix sums
+// of the squared grey values come within 0.02 % of their int32 bound (W + D <= 33023 partners of
+// 65025; an overflow would fail here, and under UBSan in the asan preset).
+TEST(SegmentCosts, WidestRowsAtLargestRange) {
+  const int w = kMaxImageWidth, h = 1;
+  ImageU8 l(w, h), r(w, h);
+  std::mt19937 rng(9u);
+  std::uniform_int_distribution<int> u(240, 255);
+  for (auto& v : l.data) v = static_cast<std::uint8_t>(u(rng));
+  for (auto& v : r.data) v = 255;
+  r.at(w / 2, 0) = 0;
+  const ImageU16 gl = gradient_magnitude(l), gr = gradient_magnitude(r);
+  SegmentationParams sp;
+  sp.region_size = 16;
+  const Segmentation seg = slic_segment(l, sp);
+  CostParams p;
+  p.max_disparity = 256;
+  p.nmi_candidates = 4;
+  expect_same(compute_segment_costs(l, r, gl, gr, seg, +1, p, test_lut(), 1),
+              reference_costs(l, r, gl, gr, seg, +1, p, test_lut()));
+}
+
 TEST(SegmentCosts, InjectedShiftMovesThePartner) {
   const ImageU8 l = test::texture_image(40, 12, 1u), r = test::texture_image(40, 12, 2u);
   const ImageU16 gl = gradient_magnitude(l), gr = gradient_magnitude(r);
