@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "fuzzystereo/image.hpp"
+#include "fuzzystereo/memory.hpp"
 
 namespace {
 
@@ -49,3 +50,13 @@ TEST(ImageSmoke, InvalidDisparityIsOutsideTheQ4Range) {
 }
 
 }  // namespace
+
+// The process memory policy (fuzzystereo/memory.hpp) must really be applied on glibc systems: an
+// earlier version checked __GLIBC__ before any libc header had defined it and silently did nothing.
+TEST(Runtime, RetainFreedMemoryAppliesOnGlibc) {
+#if defined(__GLIBC__)
+  EXPECT_TRUE(fs::retain_freed_memory());
+#else
+  EXPECT_FALSE(fs::retain_freed_memory());
+#endif
+}

@@ -3,8 +3,8 @@
 
 namespace fs {
 
-// Keep freed heap memory mapped in the process (glibc: mmap threshold 256 MiB, trim threshold
-// 1 GiB), so the large per-frame buffers (label images, disparity maps, entropy maps: 0.5-2 MB
+// Keep freed heap memory mapped in the process (glibc: mmap threshold 32 MiB, its maximum; trim
+// threshold 1 GiB), so the large per-frame buffers (label images, disparity maps, entropy maps: 0.5-2 MB
 // each on a KITTI frame) are served from memory that is already mapped instead of fresh mmap'd
 // pages: no page fault and no kernel zero-fill per 4 KiB page on every frame. Measured on the
 // matcher (tests/bench, KITTI-sized pair, 1 thread): -6 % time, SLIC -15 %; docs/results.md.

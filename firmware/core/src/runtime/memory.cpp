@@ -6,6 +6,8 @@
 // for the matcher only; the policy covers every stage and the robot loop with two lines.)
 #include "fuzzystereo/memory.hpp"
 
+#include <cstdlib>  // defines __GLIBC__ on glibc systems (via <features.h>)
+
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
@@ -14,7 +16,9 @@ namespace fs {
 
 bool retain_freed_memory() {
 #if defined(__GLIBC__)
-  const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 256 * 1024 * 1024) == 1;
+  // 32 MiB is the largest mmap threshold glibc accepts on 64-bit targets (a larger value is
+  // refused and leaves the dynamic threshold in place); every per-frame buffer is smaller.
+  const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024) == 1;
   const bool trim_ok = mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024) == 1;
   return mmap_ok && trim_ok;
 #else
