@@ -27,8 +27,10 @@
 //   entropies                          Q16 bits from the n*log2(n) table (uint64)
 //   NMI, IGSAD                         Q16 in [0, 1]
 #include <algorithm>
+#include <bit>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <numeric>
 
 #include "fuzzystereo/stages.hpp"
@@ -236,36 +238,53 @@ void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, cons
   }
 }
 
-// Lower bound of the K-th largest prescore: the smallest of the maxima of K disjoint chunks (K
-// values, one per chunk, are >= it). Branch-free max over each chunk (vectorises); 0 when D < 2K.
+// Lower bound of the K-th largest prescore: the K-th largest of the maxima of M = 2K disjoint
+// chunks (K values at distinct positions, one per chunk, are >= it; M = K when D < 4K). The chunk
+// maxima are branch-free (vectorises); 0 when D < 2K.
 FS_TARGET_CLONES
 std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, int K) {
-  if (D < 2 * K) return 0;
-  const int chunk = D / K;
-  std::uint32_t thr = 0xFFFFFFFFu;
-  for (int k = 0; k < K; ++k) {
+  if (D < 2 * K || K > 32) return 0;
+  const int M = D >= 4 * K ? 2 * K : K;
+  const int chunk = D / M;
+  std::uint32_t mx[64];
+  for (int k = 0; k < M; ++k) {
     std::uint32_t m = 0;
     for (int d = k * chunk; d < (k + 1) * chunk; ++d) m = std::max(m, prescore[d]);
-    thr = std::min(thr, m);
+    mx[k] = m;
   }
-  return thr;
+  std::nth_element(mx, mx + (K - 1), mx + M, std::greater<>());
+  return mx[K - 1];
+}
+
+// Flags of the disparities that reach thr (1 byte per d, vectorises); the flag array is padded
+// with zeros to a multiple of 8 so it can be read 8 flags at a time.
+FS_TARGET_CLONES
+void flag_at_least(const std::uint32_t* __restrict prescore, int D, std::uint32_t thr, std::uint8_t* __restrict flag) {
+  for (int d = 0; d < D; ++d) flag[d] = prescore[d] >= thr ? 1 : 0;
+  for (int d = D; d % 8 != 0; ++d) flag[d] = 0;
 }
 
 // The K best disparities by (prescore desc, d asc), best first: one pass keeping a sorted list of
 // K (most disparities lose against the K-th best with one comparison).
 //   key = prescore * 2^32 + (2^32 - 1 - d): larger key = better, ties -> smaller d.
-// Disparities below top_k_threshold cannot be among the K best (at least K prescores reach it) and
-// are skipped with one well-predicted comparison; the result is that of the full pass.
-void top_k(const std::uint32_t* prescore, int D, int K, std::uint64_t* best, int* order) {
-  const std::uint32_t thr = top_k_threshold(prescore, D, K);
+// Disparities below top_k_threshold cannot be among the K best (at least K prescores reach it):
+// only the flagged ones are visited, found 8 flags at a time from the lowest set byte (no
+// per-disparity branch); the result is that of the full pass. flag: scratch of >= D + 8 bytes.
+void top_k(const std::uint32_t* prescore, int D, int K, std::uint64_t* best, int* order, std::uint8_t* flag) {
+  flag_at_least(prescore, D, top_k_threshold(prescore, D, K), flag);
   int m = 0;
-  for (int d = 0; d < D; ++d) {
-    if (prescore[d] < thr) continue;
-    const std::uint64_t key = (std::uint64_t(prescore[d]) << 32) | (0xFFFFFFFFu - static_cast<std::uint32_t>(d));
-    if (m == K && key <= best[K - 1]) continue;
-    int j = m < K ? m++ : K - 1;
-    for (; j > 0 && best[j - 1] < key; --j) best[j] = best[j - 1];
-    best[j] = key;
+  for (int d0 = 0; d0 < D; d0 += 8) {
+    std::uint64_t bits;
+    std::memcpy(&bits, flag + d0, sizeof bits);  // byte i = flag of d0 + i
+    while (bits) {
+      const int d = d0 + std::countr_zero(bits) / 8;  // little-endian word (static_assert in internal.hpp)
+      bits &= bits - 1;  // each flag byte is 0 or 1: clears exactly that flag
+      const std::uint64_t key = (std::uint64_t(prescore[d]) << 32) | (0xFFFFFFFFu - static_cast<std::uint32_t>(d));
+      if (m == K && key <= best[K - 1]) continue;
+      int j = m < K ? m++ : K - 1;
+      for (; j > 0 && best[j - 1] < key; --j) best[j] = best[j - 1];
+      best[j] = key;
+    }
   }
   for (int k = 0; k < K; ++k) order[k] = static_cast<int>(0xFFFFFFFFu - static_cast<std::uint32_t>(best[k]));
 }
@@ -332,6 +351,7 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         hx(static_cast<std::size_t>(B));
     std::vector<std::uint32_t> prescore(uD);
     std::vector<std::uint64_t> best(uD);
+    std::vector<std::uint8_t> flags(uD + 8);
     std::vector<int> order(uD);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(dynamic, 32)
@@ -423,7 +443,7 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
       // needs no interpolation); ties -> smaller d.
       if (K < D) {
         prescore_nearest(fis, c.ncc.data() + off, c.igsad.data() + off, D, prescore.data());
-        top_k(prescore.data(), D, K, best.data(), order.data());
+        top_k(prescore.data(), D, K, best.data(), order.data(), flags.data());
         std::int16_t* cand = c.candidates.data() + std::size_t(s) * std::size_t(K);
         for (int k = 0; k < K; ++k) cand[k] = static_cast<std::int16_t>(order[std::size_t(k)]);
         std::sort(cand, cand + K);
