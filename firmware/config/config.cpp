@@ -158,6 +158,8 @@ MatcherParams to_params(const Values& v) {
   p.cost.nmi_bins = i("cost.nmi_bins");
   p.cost.nmi_candidates = i("cost.nmi_candidates");
   p.cost.subpixel = v.flag("cost.subpixel");
+  p.cost.gradient_gain_compensation = v.flag("cost.gradient_gain_compensation");
+  p.cost.gradient_gain_deadband = v.num("cost.gradient_gain_deadband");
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.lr.max_diff = i("lr_check.max_diff");
@@ -249,7 +251,10 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\niterations = " << p.seg.iterations << "\nmin_segment_pct = " << p.seg.min_segment_pct << "\n\n"
     << "[cost]\nmax_disparity = " << p.cost.max_disparity << "\nalpha = " << fmt_num(p.cost.alpha)
     << (p.cost.alpha == std::floor(p.cost.alpha) ? ".0" : "") << "\nnmi_bins = " << p.cost.nmi_bins
-    << "\nnmi_candidates = " << p.cost.nmi_candidates << "\nsubpixel = " << (p.cost.subpixel ? "true" : "false") << "\n\n"
+    << "\nnmi_candidates = " << p.cost.nmi_candidates << "\nsubpixel = " << (p.cost.subpixel ? "true" : "false")
+    << "\ngradient_gain_compensation = " << (p.cost.gradient_gain_compensation ? "true" : "false")
+    << "\ngradient_gain_deadband = " << fmt_num(p.cost.gradient_gain_deadband)
+    << (p.cost.gradient_gain_deadband == std::floor(p.cost.gradient_gain_deadband) ? ".0" : "") << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window

@@ -36,6 +36,19 @@ def test_gradient_matches_scalar_sobel_on_odd_size():
     np.testing.assert_array_equal(image.gradient_magnitude(img), _sobel_scalar(img))
 
 
+def test_gradient_gain_compensation_undoes_a_gain_and_respects_the_dead_band():
+    img = np.random.default_rng(3).integers(0, 256, (23, 37)).astype(np.uint8)
+    g = image.gradient_magnitude(img)
+    dim = np.floor(g * 0.6)
+    back, f = image.compensate_gradient_gain(g, dim, 0.2)
+    assert f == pytest.approx(g.sum() / dim.sum())
+    assert np.abs(back - g).max() <= 2
+    same, f1 = image.compensate_gradient_gain(g, dim, 0.7)  # 0.6x is a 67 % difference
+    assert f1 == 1.0 and same is dim
+    flat, f0 = image.compensate_gradient_gain(g, np.zeros_like(g), 0.0)
+    assert f0 == 1.0 and not flat.any()
+
+
 def test_gradient_extremes():
     img = np.zeros((5, 6), np.uint8)
     img[:, 3:] = 255

@@ -68,6 +68,8 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
 
   ImageU16 grad_l, grad_r;                                                              // eq. (5)
   detail::run_pair(threads, [&] { grad_l = gradient_magnitude(left); }, [&] { grad_r = gradient_magnitude(right); });
+  if (p.cost.gradient_gain_compensation)
+    r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);
   clock.lap(Stage::Gradient);
 
   detail::run_pair(

@@ -65,5 +65,35 @@ TEST(Gradient, DoubleSqrtRoundingIsExactOverTheWholeRange) {
     ASSERT_EQ(static_cast<std::uint64_t>(std::sqrt(static_cast<double>(v)) + 0.5), exact) << v;
   }
 }
+// Gain compensation (docs/algorithm.md 2b) against a plain per-pixel reference: a right image
+// whose gradients are 0.6x the left's is scaled back; inside the dead band nothing changes.
+TEST(Gradient, GainCompensationScalesTheOtherImageOutsideTheDeadBand) {
+  const ImageU8 l = test::texture_image(53, 31, 4u);
+  const ImageU16 gl = gradient_magnitude(l);
+  ImageU16 dim = gl;
+  for (auto& v : dim.data) v = static_cast<std::uint16_t>(v * 6 / 10);
+  std::uint64_t sl = 0, sd = 0;
+  for (auto v : gl.data) sl += v;
+  for (auto v : dim.data) sd += v;
+  ASSERT_GT(sd, 0u);
+  const std::uint64_t f = ((sl << 16) + sd / 2) / sd;  // reference factor, Q16
+  ImageU16 got = dim;
+  EXPECT_EQ(compensate_gradient_gain(gl, got, 0.2), f);
+  for (std::size_t i = 0; i < got.data.size(); ++i) {
+    const std::uint64_t want = std::min<std::uint64_t>(1443, (dim.data[i] * f + 32768) >> 16);
+    ASSERT_EQ(got.data[i], want) << "pixel " << i;
+  }
+  // The scaled image is back within 2 grey steps of the original gradients.
+  for (std::size_t i = 0; i < got.data.size(); ++i) EXPECT_NEAR(got.data[i], gl.data[i], 2.0);
+  // 0.6x is a 67 % difference: a dead band of 0.7 leaves it alone, and the reverse direction works.
+  ImageU16 kept = dim;
+  EXPECT_EQ(compensate_gradient_gain(gl, kept, 0.7), 65536u);
+  EXPECT_EQ(kept.data, dim.data);
+  ImageU16 bright = gl;
+  EXPECT_LT(compensate_gradient_gain(dim, bright, 0.2), 65536u);
+  // An all-zero image (flat) is left unchanged.
+  ImageU16 flat(53, 31, 0);
+  EXPECT_EQ(compensate_gradient_gain(gl, flat, 0.0), 65536u);
+}
 }  // namespace
 }  // namespace fs

@@ -31,6 +31,7 @@ struct MatchResult {
   ImageU8 esr_replaced;                     // 1 = replaced by eq. (15)
   ImageI16 disp_final;                      // Q4, after densify (== disp_esr when densify disabled)
   ImageU8 densify_changed;                  // 0 kept, 1 filled, 2 removed as a speckle (then filled)
+  std::uint32_t gradient_gain_q16 = 65536;  // factor applied to the right gradients (Q16; 65536 = none)
   StageTimings timings;
 };
 

@@ -18,6 +18,8 @@ struct CostParams {
   int nmi_bins = 16;        // eq. (2)-(4)
   int nmi_candidates = 8;   // 0 = exhaustive
   bool subpixel = true;     // parabola fit on the FIS scores around the winner
+  bool gradient_gain_compensation = true;  // scale the right gradients to the left's level (eq. 5-7)
+  double gradient_gain_deadband = 0.2;     // ... when their mean magnitudes differ by more than this
   int inject_shift = 0;     // TEST ONLY: adds a bias to the right-image shift (fault injection)
 };
 

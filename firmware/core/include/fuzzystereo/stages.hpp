@@ -16,6 +16,12 @@ namespace fs {
 // eq. (5): gradient magnitude sqrt(gx^2 + gy^2) of 3x3 Sobel derivatives, border replicated,
 // rounded to the nearest integer (uint16, <= 1443).
 ImageU16 gradient_magnitude(const ImageU8& img);
+// Gain compensation of the gradient images (not in the paper; docs/algorithm.md 2b). When the
+// mean magnitudes differ by more than `deadband` (sum_l > (1 + deadband) sum_r or the reverse),
+// `other` is scaled to the reference's level: g' = min(1443, (g * f + 2^15) >> 16) with
+// f = round(2^16 * sum_ref / sum_other) (Q16, at most 2^20). Returns f (65536 = unchanged; also for
+// an all-zero image).
+std::uint32_t compensate_gradient_gain(const ImageU16& ref, ImageU16& other, double deadband);
 
 // ---- segmentation/ --------------------------------------------------------------------------
 // Horizontal run of one segment in one row: pixels [x0, x1) of row y.

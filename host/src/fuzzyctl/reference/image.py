@@ -48,3 +48,19 @@ def gradient_magnitude(img: np.ndarray) -> np.ndarray:
     gy = cv2.Sobel(f, cv2.CV_64F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
     # floor(x + 0.5): ties (never reached for integer gx, gy: sqrt of an integer is never k + 0.5)
     return np.floor(np.sqrt(gx * gx + gy * gy) + 0.5)
+
+
+def compensate_gradient_gain(ref: np.ndarray, other: np.ndarray, deadband: float) -> tuple[np.ndarray, float]:
+    """Gain compensation of the gradients (not in the paper; docs/algorithm.md 2b), float twin of
+    the firmware's ``compensate_gradient_gain``: when the mean magnitudes differ by more than
+    ``deadband``, ``other`` is scaled to ``ref``'s level (rounded, capped at 1443). Returns the new
+    ``other`` and the factor (1.0 = unchanged). The firmware's factor is the same ratio in Q16, so the
+    two agree to within one grey level per pixel."""
+    sr, so = float(ref.sum()), float(other.sum())
+    if sr == 0.0 or so == 0.0:
+        return other, 1.0
+    ratio = sr / so
+    if ratio <= 1.0 + deadband and 1.0 / ratio <= 1.0 + deadband:
+        return other, 1.0
+    ratio = min(ratio, 16.0)
+    return np.minimum(1443.0, np.floor(other * ratio + 0.5)), ratio
