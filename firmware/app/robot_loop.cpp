@@ -514,6 +514,9 @@ LoopResult RobotLoop::run() {
     // trust the velocity) from the tracker, grown by their position uncertainty.
     s1 = std::chrono::steady_clock::now();
     std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m);
+    // Where each planner obstacle came from (record only): m = map cell, v = moving track,
+    // n = near-track net, r = reachable set of an out-of-view mover.
+    std::string kinds(obstacles.size(), 'm');
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -550,20 +553,24 @@ LoopResult RobotLoop::run() {
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m)
+              dist > tr.radius_m + I.rp.radius_m) {
             obstacles.push_back({tr.pos(), tr.radius_m, {}});
-          else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
+            kinds.push_back('n');
+          } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
             // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
             CircleObstacle reach;
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, robot::norm(o.vel), age_s, lp.near_track_reach_cap_m,
-                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach))
+                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach)) {
               obstacles.push_back(reach);
+              kinds.push_back('r');
+            }
           }
           continue;
         }
         obstacles.push_back(o);
+        kinds.push_back('v');
       }
     }
     // Latency compensation: the command computed now reaches the motors after the processing
@@ -712,6 +719,14 @@ LoopResult RobotLoop::run() {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});
       fj["plan_obstacles"] = std::move(mj);
+      fj["plan_kinds"] = kinds;
+      json pj = json::array();
+      for (std::size_t i = 0; i < plan.path.size(); i += (i + 1 < plan.path.size() ? 3 : 1))
+        pj.push_back({std::round(plan.path[i].x * 100) / 100, std::round(plan.path[i].y * 100) / 100});
+      if (!plan.path.empty()) pj.push_back({std::round(plan.path.back().x * 100) / 100, std::round(plan.path.back().y * 100) / 100});
+      fj["plan_path"] = std::move(pj);
+      fj["carrot"] = {std::round(plan.carrot.x * 100) / 100, std::round(plan.carrot.y * 100) / 100};
+      fj["reduced_margin"] = plan.reduced_margin;
     }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)
@@ -728,7 +743,11 @@ LoopResult RobotLoop::run() {
                      {"p", {tr.pos().x, tr.pos().y}},
                      {"v", {tr.vel().x, tr.vel().y}},
                      {"r", tr.radius_m},
-                     {"confirmed", tr.confirmed}});
+                     {"confirmed", tr.confirmed},
+                     {"hits", tr.hits},
+                     {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
+                     {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
+                     {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)}});
     fj["tracks"] = std::move(trs);
     json sm;
     for (const auto& [k, v] : stage_ms) sm[k] = v.back();
