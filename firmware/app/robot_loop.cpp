@@ -89,8 +89,8 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s, near_track_reach_cap_m;
-  int moving_min_hits;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s;
+  int moving_min_hits, static_track_cells;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -104,6 +104,8 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.near_track_m = v.num("loop.near_track_m");
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
+  p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
+  p.static_track_lag_s = v.num("loop.static_track_lag_s");
   return p;
 }
 
@@ -498,6 +500,7 @@ LoopResult RobotLoop::run() {
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
+    scan.t_ns = t_frame - t0;  // the tracker's time base
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
@@ -525,6 +528,17 @@ LoopResult RobotLoop::run() {
         if (!tr.confirmed) continue;
         const CircleObstacle& o = tracked[k++];
         const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
+        // Static support: where the track was last measured, the map holds cells that were occupied
+        // static_track_lag_s before the track's first measurement and still are. A mover's surface
+        // cells become occupied when it arrives; a static obstacle's were there before. Such a track
+        // is a static obstacle's (fragments of a wall or a large cylinder, mis-associated, read as
+        // 0.1-1 m/s "movers" that travel along the wall) and the map already holds the obstacle: it
+        // gives no mover, no near-track circle and no reachable set. (Seed 11: these tracks closed
+        // the gaps of gap walls with 0.5-1 m circles and made robots evade static obstacles.)
+        if (lp.static_track_cells > 0 &&
+            world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells)
+          continue;
         const auto moving = [&] {
           if (tr.hits < lp.moving_min_hits || robot::norm(o.vel) < lp.moving_speed_mps || age_s > lp.moving_max_age_s)
             return false;
@@ -747,7 +761,9 @@ LoopResult RobotLoop::run() {
                      {"hits", tr.hits},
                      {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
                      {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
-                     {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)}});
+                     {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
+                     {"support", world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                                           tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s))}});
     fj["tracks"] = std::move(trs);
     json sm;
     for (const auto& [k, v] : stage_ms) sm[k] = v.back();

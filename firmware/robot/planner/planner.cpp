@@ -108,9 +108,12 @@ struct ArcEval {
 };
 
 // Squared centre distance below which the robot touches obstacle i (its hard margin): robot radius
-// + o.r + collision_margin_m. With escape_inside_margin, an obstacle the robot is already closer to
-// than that at t = 0 gets its current distance instead: an arc then "touches" it only when it
-// brings the robot closer still. Without this every arc, standing included, is in contact from the
+// + o.r + collision_margin_m. With escape_inside_margin, a static obstacle (zero velocity: map
+// cells, near-track and reachable-set circles) the robot is already closer to than that at t = 0
+// gets its current distance instead: an arc then "touches" it only when it brings the robot closer
+// still. Moving obstacles keep the hard margin (no arc admissible -> the evasion below): on seed-11
+// scenario 92 the rule for movers let the robot drive on beside a track 0.2 m off the true mover,
+// into it. Without this every arc, standing included, is in contact from the
 // first step, no arc is admissible, and a robot that came too close to a static obstacle (or
 // stands in a map cell left by a passing mover) waits there for ever — the evasion below is only
 // for moving obstacles (seed-11 suite scenarios 18, 97, 99: 145-168 frames standing, timeout).
@@ -121,7 +124,8 @@ std::vector<double> contact_d2(const Pose2D& p0, const std::vector<CircleObstacl
     const CircleObstacle& o = obs[i];
     const double hard = o.r + rp.radius_m + pp.collision_margin_m;
     const double dx = o.c.x - p0.x, dy = o.c.y - p0.y, now2 = dx * dx + dy * dy;
-    d2[i] = pp.escape_inside_margin ? std::min(hard * hard, now2) : hard * hard;
+    const bool is_static = o.vel.x == 0.0 && o.vel.y == 0.0;
+    d2[i] = pp.escape_inside_margin && is_static ? std::min(hard * hard, now2) : hard * hard;
   }
   return d2;
 }
