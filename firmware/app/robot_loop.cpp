@@ -91,6 +91,7 @@ struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s;
   int moving_min_hits, static_track_cells;
+  bool static_track_keep_circles;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -106,6 +107,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
   p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
+  p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
   return p;
 }
 
@@ -533,13 +535,16 @@ LoopResult RobotLoop::run() {
         // cells become occupied when it arrives; a static obstacle's were there before. Such a track
         // is a static obstacle's (fragments of a wall or a large cylinder, mis-associated, read as
         // 0.1-1 m/s "movers" that travel along the wall) and the map already holds the obstacle: it
-        // gives no mover, no near-track circle and no reachable set. (Seed 11: these tracks closed
-        // the gaps of gap walls with 0.5-1 m circles and made robots evade static obstacles.)
-        if (lp.static_track_cells > 0 &&
+        // gives no mover; with static_track_keep_circles it may still give a near-track circle or a
+        // reachable set (zero velocity), otherwise nothing. (Seed 11: these tracks closed the gaps of
+        // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
+        const bool supported =
+            lp.static_track_cells > 0 &&
             world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells)
-          continue;
+                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells;
+        if (supported && !lp.static_track_keep_circles) continue;
         const auto moving = [&] {
+          if (supported) return false;
           if (tr.hits < lp.moving_min_hits || robot::norm(o.vel) < lp.moving_speed_mps || age_s > lp.moving_max_age_s)
             return false;
           // Has it really travelled? A static obstacle's track jitters (fragments, depth noise) and
