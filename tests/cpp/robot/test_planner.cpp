@@ -208,6 +208,7 @@ TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
 TEST(Planner, DrivesAwayFromAnObstacleAlreadyInsideTheMargin) {
   const RobotParams rp = robot();
   PlannerParams pp = planner();
+  pp.escape_inside_margin = true;
   const Pose2D pose{0.0, 0.0, 0.0};
   const std::vector<CircleObstacle> obs = {{{0.0, 0.36}, 0.2, {}}};  // surface gap 0.01 m
   const double d0 = norm(obs[0].c - pose.pos());
