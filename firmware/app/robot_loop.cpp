@@ -89,8 +89,9 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s, near_track_reach_cap_m;
-  int moving_min_hits;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s;
+  int moving_min_hits, static_track_cells;
+  bool static_track_keep_circles;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -104,6 +105,9 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.near_track_m = v.num("loop.near_track_m");
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
+  p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
+  p.static_track_lag_s = v.num("loop.static_track_lag_s");
+  p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
   return p;
 }
 
@@ -498,6 +502,7 @@ LoopResult RobotLoop::run() {
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas);
+    scan.t_ns = t_frame - t0;  // the tracker's time base
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
@@ -514,6 +519,9 @@ LoopResult RobotLoop::run() {
     // trust the velocity) from the tracker, grown by their position uncertainty.
     s1 = std::chrono::steady_clock::now();
     std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m);
+    // Where each planner obstacle came from (record only): m = map cell, v = moving track,
+    // n = near-track net, r = reachable set of an out-of-view mover.
+    std::string kinds(obstacles.size(), 'm');
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -522,7 +530,21 @@ LoopResult RobotLoop::run() {
         if (!tr.confirmed) continue;
         const CircleObstacle& o = tracked[k++];
         const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
+        // Static support: where the track was last measured, the map holds cells that were occupied
+        // static_track_lag_s before the track's first measurement and still are. A mover's surface
+        // cells become occupied when it arrives; a static obstacle's were there before. Such a track
+        // is a static obstacle's (fragments of a wall or a large cylinder, mis-associated, read as
+        // 0.1-1 m/s "movers" that travel along the wall) and the map already holds the obstacle: it
+        // gives no mover; with static_track_keep_circles it may still give a near-track circle or a
+        // reachable set (zero velocity), otherwise nothing. (Seed 11: these tracks closed the gaps of
+        // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
+        const bool supported =
+            lp.static_track_cells > 0 &&
+            world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells;
+        if (supported && !lp.static_track_keep_circles) continue;
         const auto moving = [&] {
+          if (supported) return false;
           if (tr.hits < lp.moving_min_hits || robot::norm(o.vel) < lp.moving_speed_mps || age_s > lp.moving_max_age_s)
             return false;
           // Has it really travelled? A static obstacle's track jitters (fragments, depth noise) and
@@ -550,20 +572,24 @@ LoopResult RobotLoop::run() {
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m)
+              dist > tr.radius_m + I.rp.radius_m) {
             obstacles.push_back({tr.pos(), tr.radius_m, {}});
-          else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
+            kinds.push_back('n');
+          } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
             // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
             CircleObstacle reach;
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, robot::norm(o.vel), age_s, lp.near_track_reach_cap_m,
-                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach))
+                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach)) {
               obstacles.push_back(reach);
+              kinds.push_back('r');
+            }
           }
           continue;
         }
         obstacles.push_back(o);
+        kinds.push_back('v');
       }
     }
     // Latency compensation: the command computed now reaches the motors after the processing
@@ -712,6 +738,14 @@ LoopResult RobotLoop::run() {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});
       fj["plan_obstacles"] = std::move(mj);
+      fj["plan_kinds"] = kinds;
+      json pj = json::array();
+      for (std::size_t i = 0; i < plan.path.size(); i += (i + 1 < plan.path.size() ? 3 : 1))
+        pj.push_back({std::round(plan.path[i].x * 100) / 100, std::round(plan.path[i].y * 100) / 100});
+      if (!plan.path.empty()) pj.push_back({std::round(plan.path.back().x * 100) / 100, std::round(plan.path.back().y * 100) / 100});
+      fj["plan_path"] = std::move(pj);
+      fj["carrot"] = {std::round(plan.carrot.x * 100) / 100, std::round(plan.carrot.y * 100) / 100};
+      fj["reduced_margin"] = plan.reduced_margin;
     }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)
@@ -728,7 +762,13 @@ LoopResult RobotLoop::run() {
                      {"p", {tr.pos().x, tr.pos().y}},
                      {"v", {tr.vel().x, tr.vel().y}},
                      {"r", tr.radius_m},
-                     {"confirmed", tr.confirmed}});
+                     {"confirmed", tr.confirmed},
+                     {"hits", tr.hits},
+                     {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
+                     {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
+                     {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
+                     {"support", world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                                           tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s))}});
     fj["tracks"] = std::move(trs);
     json sm;
     for (const auto& [k, v] : stage_ms) sm[k] = v.back();

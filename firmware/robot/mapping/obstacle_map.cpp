@@ -31,6 +31,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     sy_.assign(nn, 0.f);
     nhit_.assign(nn, 0);
     stamp_.assign(nn, 0);
+    since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
     init_ = true;
   }
   ++frame_;
@@ -46,7 +47,9 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     nhit_[i] = k;
     if (stamp_[i] == frame_) continue;
     stamp_[i] = frame_;
+    const bool was_occupied = logodds_[i] > static_cast<float>(p_.l_occupied);
     logodds_[i] = std::min(static_cast<float>(p_.l_max), logodds_[i] + static_cast<float>(p_.hit));
+    if (!was_occupied && logodds_[i] > static_cast<float>(p_.l_occupied)) since_ns_[i] = scan.t_ns;
   }
   // 2. free space along the rays: cells in the view, nearer than their column's free range
   const int w = static_cast<int>(scan.free_range_m.size());
@@ -93,6 +96,20 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m)
       out.push_back({p, 0.5 * p_.cell_m, {}});
     }
   return out;
+}
+
+int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns) const {
+  if (!init_) return 0;
+  int x0, y0, x1, y1;
+  cell_window(c, r, x0, y0, x1, y1);
+  int n = 0;
+  for (int iy = y0; iy <= y1; ++iy)
+    for (int ix = x0; ix <= x1; ++ix) {
+      const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
+      if (logodds_[i] <= static_cast<float>(p_.l_occupied) || since_ns_[i] > t_ns) continue;
+      if (norm(Vec2{sx_[i], sy_[i]} - c) <= r) ++n;
+    }
+  return n;
 }
 
 int ObstacleMap::occupied_count() const {

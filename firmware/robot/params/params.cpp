@@ -59,6 +59,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.uncertainty_sigmas = v.num("planner.uncertainty_sigmas");
   p.uncertainty_max_m = v.num("planner.uncertainty_max_m");
   p.latency_compensation = v.flag("planner.latency_compensation");
+  p.escape_inside_margin = v.flag("planner.escape_inside_margin");
   return p;
 }
 

@@ -107,11 +107,35 @@ struct ArcEval {
   double heading_after_T = -1;   // ... after one control period (what the command does now)
 };
 
+// Squared centre distance below which the robot touches obstacle i (its hard margin): robot radius
+// + o.r + collision_margin_m. With escape_inside_margin, a static obstacle (zero velocity: map
+// cells, near-track and reachable-set circles) the robot is already closer to than that at t = 0
+// gets its current distance instead: an arc then "touches" it only when it brings the robot closer
+// still. Moving obstacles keep the hard margin (no arc admissible -> the evasion below): on seed-11
+// scenario 92 the rule for movers let the robot drive on beside a track 0.2 m off the true mover,
+// into it. Without this every arc, standing included, is in contact from the
+// first step, no arc is admissible, and a robot that came too close to a static obstacle (or
+// stands in a map cell left by a passing mover) waits there for ever — the evasion below is only
+// for moving obstacles (seed-11 suite scenarios 18, 97, 99: 145-168 frames standing, timeout).
+std::vector<double> contact_d2(const Pose2D& p0, const std::vector<CircleObstacle>& obs, const PlannerParams& pp,
+                               const RobotParams& rp) {
+  std::vector<double> d2(obs.size());
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    const CircleObstacle& o = obs[i];
+    const double hard = o.r + rp.radius_m + pp.collision_margin_m;
+    const double dx = o.c.x - p0.x, dy = o.c.y - p0.y, now2 = dx * dx + dy * dy;
+    const bool is_static = o.vel.x == 0.0 && o.vel.y == 0.0;
+    d2[i] = pp.escape_inside_margin && is_static ? std::min(hard * hard, now2) : hard * hard;
+  }
+  return d2;
+}
+
 // Robot along a constant (v, omega) arc; with brake = true, v and omega decay at the acceleration
 // limits after the first control period (the stop the robot can always still make). Positions use
 // the exact arc (integrate_pose) with the heading rotated incrementally (no trig per step).
+// hard2[i]: squared contact distance of obs[i] (contact_d2).
 ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::vector<CircleObstacle>& obs,
-                 Vec2 carrot, const PlannerParams& pp, const RobotParams& rp) {
+                 const std::vector<double>& hard2, Vec2 carrot, const PlannerParams& pp, const RobotParams& rp) {
   ArcEval e;
   const int steps = std::max(1, static_cast<int>(std::lround(pp.horizon_s / pp.sim_step_s)));
   const double dt = pp.horizon_s / steps;
@@ -155,10 +179,11 @@ ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::ve
     s = s1;
     double gap_min = kInf;
     bool hit = false;
-    for (const CircleObstacle& o : obs) {
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const CircleObstacle& o = obs[i];
       const double ox = o.c.x + t * o.vel.x - x, oy = o.c.y + t * o.vel.y - y;
-      const double d2 = ox * ox + oy * oy, hard = o.r + rp.radius_m + pp.collision_margin_m;
-      if (d2 < hard * hard) hit = true;
+      const double d2 = ox * ox + oy * oy;
+      if (d2 < hard2[i]) hit = true;
       // only gaps below the soft range (robot radius + safety margin) enter the clearance cost
       const double soft = o.r + 2.0 * rp.radius_m + pp.safety_margin_m;
       if (d2 < soft * soft) gap_min = std::min(gap_min, std::sqrt(d2) - o.r - rp.radius_m);
@@ -222,6 +247,8 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   for (const CircleObstacle& o : obstacles)
     if (norm(o.c - pos) - o.r - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
 
+  const std::vector<double> hard2 = contact_d2(pose, near, pp_, rp_);
+
   // 2. dynamic window around the current twist.
   const double T = pp_.control_period_s;
   double vmax = std::min(rp_.max_speed_mps, current.v + rp_.max_accel_mps2 * T);
@@ -243,11 +270,11 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
     const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
     for (int iw = 0; iw < nw; ++iw) {
       const double w = wmin + (wmax - wmin) * iw / (nw - 1);
-      const ArcEval a = eval_arc(pose, v, w, false, near, out.carrot, pp_, rp_);
+      const ArcEval a = eval_arc(pose, v, w, false, near, hard2, out.carrot, pp_, rp_);
       double collide_pen = 0;
       if (a.t_collide != kInf) {
         // admissible only if braking from (v, w) after one control period stays clear
-        const ArcEval b = eval_arc(pose, v, w, true, near, out.carrot, pp_, rp_);
+        const ArcEval b = eval_arc(pose, v, w, true, near, hard2, out.carrot, pp_, rp_);
         if (b.t_collide != kInf) {
           const double g = worst_gap(pose, v, w, near, pp_, rp_);
           if (g > escape_gap) {

@@ -38,6 +38,42 @@ TEST(ObstacleMap, HitsBecomeOccupiedAtTheMeanOfTheirPoints) {
   EXPECT_EQ(map.obstacles({2.0, 0.5}, 0.1).size(), 1u);
 }
 
+// occupied_before: a static surface seen from t = 0 supports a track that starts at 2 s; a mover's
+// surface cells, occupied only when it arrives (3 s), do not support its track (first measured at
+// 2.5 s, 1 m away); a cell that was cleared and hit again counts from the new hit.
+TEST(ObstacleMap, OccupiedBeforeTellsOldSurfacesFromNewOnes) {
+  ObstacleMap map;
+  const std::int64_t s = 1'000'000'000;
+  CameraScan wall = scan_at({0, 0, 0}, 0.0);
+  wall.hits = {{2.0, 0.0}, {2.0, 0.07}, {2.0, 0.14}};  // three cells
+  for (int k = 0; k <= 10; ++k) {  // 0 .. 1 s
+    wall.t_ns = k * s / 10;
+    map.integrate(wall);
+  }
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 2 * s - s), 3);  // occupied at t = 0 <= 1 s
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, -1), 0);        // not before the first scan
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.03, s), 0);        // radius: no hit point within 3 cm
+  // A mover's surface at (3, 1), first hit at 3 s.
+  CameraScan mover = scan_at({0, 0, 0}, 0.0);
+  mover.hits = {{3.0, 1.0}, {3.0, 1.07}};
+  mover.t_ns = 3 * s;
+  map.integrate(mover);
+  EXPECT_EQ(map.occupied_before({3.1, 1.0}, 0.2, 3 * s), 2);
+  EXPECT_EQ(map.occupied_before({3.1, 1.0}, 0.2, static_cast<std::int64_t>(2.5 * s) - s), 0);
+  // Clear the wall cells (free to 4 m; log-odds 3.5 -> below 0.4 after 8 frames), hit them again at
+  // 10 s: they count from 10 s.
+  CameraScan free4 = scan_at({0, 0, 0}, 4.0);
+  for (int k = 0; k < 8; ++k) {
+    free4.t_ns = 4 * s + k * s / 10;
+    map.integrate(free4);
+  }
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 9 * s), 0);
+  wall.t_ns = 10 * s;
+  map.integrate(wall);
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 9 * s), 0);
+  EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 10 * s), 3);
+}
+
 TEST(ObstacleMap, SeeingThroughACellClearsItOnlyAfterEnoughFrames) {
   ObstacleMap map;
   CameraScan s = scan_at({0, 0, 0}, 0.0);

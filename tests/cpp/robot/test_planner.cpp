@@ -200,6 +200,39 @@ TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
   EXPECT_FALSE(calm.evading);
 }
 
+// A robot already inside the hard collision margin of a static obstacle (1 cm surface gap against
+// a 2 cm margin: it came too close, or stands in a map cell a passing mover left) must be able to
+// drive away. Before escape_inside_margin every arc, standing included, was "in contact" from the
+// first step, the planner returned kWaiting with (0, 0) and the robot stood there until the time
+// limit (seed-11 suite scenarios 18, 97, 99).
+TEST(Planner, DrivesAwayFromAnObstacleAlreadyInsideTheMargin) {
+  const RobotParams rp = robot();
+  PlannerParams pp = planner();
+  pp.escape_inside_margin = true;
+  const Pose2D pose{0.0, 0.0, 0.0};
+  const std::vector<CircleObstacle> obs = {{{0.0, 0.36}, 0.2, {}}};  // surface gap 0.01 m
+  const double d0 = norm(obs[0].c - pose.pos());
+  ASSERT_LT(d0, obs[0].r + rp.radius_m + pp.collision_margin_m);
+  const PlanOutput out = Planner(pp, rp).plan(pose, {}, {3.0, 0.0}, obs);
+  EXPECT_EQ(out.status, PlanStatus::kMoving);
+  EXPECT_FALSE(out.evading);
+  EXPECT_GT(out.cmd.v, 0.0);
+  // The chosen arc never brings the robot closer to the obstacle than it is now.
+  for (double t = 0.0; t <= pp.horizon_s; t += 0.01)
+    EXPECT_GE(norm(obs[0].c - integrate_pose(pose, out.cmd, t).pos()), d0 - 1e-9) << "t = " << t;
+  // An obstacle straight ahead inside the margin: no arc may close in, turning away is allowed.
+  const std::vector<CircleObstacle> ahead = {{{0.36, 0.0}, 0.2, {}}};
+  const PlanOutput turn = Planner(pp, rp).plan(pose, {}, {3.0, 1.0}, ahead);
+  EXPECT_EQ(turn.status, PlanStatus::kMoving);
+  for (double t = 0.0; t <= pp.horizon_s; t += 0.01)
+    EXPECT_GE(norm(ahead[0].c - integrate_pose(pose, turn.cmd, t).pos()), 0.36 - 1e-9) << "t = " << t;
+  // The old rule (every arc blocked): the robot stands.
+  pp.escape_inside_margin = false;
+  const PlanOutput stuck = Planner(pp, rp).plan(pose, {}, {3.0, 0.0}, obs);
+  EXPECT_EQ(stuck.status, PlanStatus::kWaiting);
+  EXPECT_EQ(stuck.cmd.v, 0.0);
+}
+
 TEST(NavSuite, ReachesGoalsWithoutCollisionAndStopsWhenBlocked) {
 #ifdef FS_TEST_EMULATED
   const int n_free = 30, n_blocked = 10;  // under qemu (10-30x slower): a subset of the same seeds

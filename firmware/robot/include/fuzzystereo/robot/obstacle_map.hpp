@@ -10,6 +10,7 @@
 // The planner gets the occupied cells as small static circles; moving obstacles come from the tracker.
 #pragma once
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "fuzzystereo/robot/geometry.hpp"
@@ -33,6 +34,7 @@ struct CameraScan {
   double min_range_m = 0.5;           // nearer than this the camera measures nothing (disparity range)
   std::vector<double> free_range_m;   // per column: forward distance seen free (0 = nothing known)
   std::vector<Vec2> hits;             // obstacle surface points (world) [m]
+  std::int64_t t_ns = 0;              // capture time (for ObstacleMap::occupied_before)
 };
 
 class ObstacleMap {
@@ -45,6 +47,12 @@ class ObstacleMap {
   // that fell into the cell, radius cell/2).
   std::vector<CircleObstacle> obstacles(Vec2 centre, double radius_m) const;
   int occupied_count() const;
+  // Occupied cells whose mean hit point lies within r of c and that have been occupied without a
+  // break since a scan at or before t_ns (a cell that drops below l_occupied starts again).
+  // Tells a static obstacle from a mover at the same place: a mover's surface cells become
+  // occupied when it arrives, a static obstacle's were there before (docs/robot.md, "Static
+  // support of a track").
+  int occupied_before(Vec2 c, double r, std::int64_t t_ns) const;
   const ObstacleMapParams& params() const { return p_; }
 
  private:
@@ -59,6 +67,7 @@ class ObstacleMap {
   std::vector<float> sx_, sy_;   // running mean of the hit points in the cell
   std::vector<std::uint32_t> nhit_;
   std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
+  std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
   std::uint32_t frame_ = 0;
 };
 

@@ -60,6 +60,8 @@ struct PlannerParams {
   double uncertainty_max_m = 0.3;    // ... at most this much [m]
   bool latency_compensation = true;  // plan from the pose and obstacle positions predicted to the
                                      // time the command reaches the motors (docs/robot.md)
+  bool escape_inside_margin = true;  // an obstacle already inside the hard margin at t = 0 blocks
+                                     // only arcs that bring the robot closer to it (docs/robot.md)
 };
 
 // [watchdog]
