@@ -10,7 +10,8 @@ namespace fs {
 // matcher (tests/bench, KITTI-sized pair, 1 thread): -6 % time, SLIC -15 %; docs/results.md.
 // The price is that the process keeps its peak heap (~100 MB at 1242 x 375, D = 160) until it
 // exits, which is what a robot's frame loop wants anyway. Call once at program start, before the
-// first frame; a no-op without glibc. Returns whether the policy was applied.
+// first frame; a no-op without glibc or under AddressSanitizer (its own allocator). Returns whether
+// the policy was applied.
 bool retain_freed_memory();
 
 }  // namespace fs

@@ -15,7 +15,9 @@
 namespace fs {
 
 bool retain_freed_memory() {
-#if defined(__GLIBC__)
+#if defined(__SANITIZE_ADDRESS__)
+  return false;  // ASan's allocator replaces glibc malloc; mallopt does not reach it
+#elif defined(__GLIBC__)
   // 32 MiB is the largest mmap threshold glibc accepts on 64-bit targets (a larger value is
   // refused and leaves the dynamic threshold in place); every per-frame buffer is smaller.
   const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024) == 1;
