@@ -107,15 +107,18 @@ TEST(Esr, BlockEntropyIncrementalEqualsRecomputation) {
 TEST(Esr, BlockEntropyOnPiecewiseConstantMaps) {
   // Segment-like patches (vertical runs longer than the window, runs of equal integer bins with
   // different Q4 values, invalid patches): the run-wise column updates against recomputation.
-  for (auto [w, h, win] : {std::tuple{43, 37, 5}, {29, 23, 3}, {31, 41, 9}}) {
+  // Patches wider than the window (pw = 13, 29) make the column entering a block equal to the one
+  // leaving it, the case the entropy is carried over unchanged.
+  for (auto [w, h, win, pw] : {std::tuple{43, 37, 5, 5}, {29, 23, 3, 5}, {31, 41, 9, 5}, {61, 37, 5, 13},
+                               {57, 29, 3, 13}, {75, 41, 9, 29}}) {
     std::mt19937 rng(11u);
     std::uniform_int_distribution<int> ud(0, 11), up(0, 99);
-    std::vector<std::int16_t> patch(std::size_t((w / 5 + 1) * (h / 7 + 1)));
+    std::vector<std::int16_t> patch(std::size_t((w / pw + 1) * (h / 7 + 1)));
     for (auto& v : patch) v = up(rng) < 10 ? kInvalidDisp : static_cast<std::int16_t>(ud(rng) * kDispScale);
     ImageI16 d(w, h);
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) {
-        const std::int16_t v = patch[std::size_t((y / 7) * (w / 5 + 1) + x / 5)];
+        const std::int16_t v = patch[std::size_t((y / 7) * (w / pw + 1) + x / pw)];
         d.at(x, y) = v == kInvalidDisp ? v : static_cast<std::int16_t>(v + (y % 3 == 0 ? 3 : 5));  // same bin
       }
     const ImageI32 e = block_entropy(d, win, 12);

@@ -8,7 +8,8 @@
 // all D bins for a recomputation. Vertical runs of equal bin (the maps are piecewise constant per
 // segment; run lengths are precomputed once per map) enter and leave as one step c -> c +- k,
 // which telescopes to the same integer sum as k single steps, so in practice an output pixel
-// costs a few table reads. Rows are independent and run in parallel.
+// costs a few table reads; where the column entering the block equals the one leaving it, the
+// entropy is carried over without any. Rows are independent and run in parallel.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -26,58 +27,107 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   // A column of a block is then entered or left in one table step per run.
   ImageI16 bins(w, h);
   ImageI16 run(w, h);
-  for (int y = h - 1; y >= 0; --y) {
-    const std::int16_t* d = disp.row(y);
-    std::int16_t* b = bins.row(y);
-    std::int16_t* rl = run.row(y);
-    for (int x = 0; x < w; ++x)
-      b[x] = d[x] == kInvalidDisp ? std::int16_t(-1)
-                                  : static_cast<std::int16_t>(std::min((d[x] + kDispScale / 2) >> kDispShift, max_disparity));
-    if (y == h - 1) {
-      std::fill(rl, rl + w, std::int16_t(1));
-      continue;
-    }
-    const std::int16_t* b1 = bins.row(y + 1);
-    const std::int16_t* rl1 = run.row(y + 1);
-    for (int x = 0; x < w; ++x)
-      rl[x] = b[x] == b1[x] ? static_cast<std::int16_t>(std::min<int>(rl1[x] + 1, window)) : std::int16_t(1);
-  }
-  ImageI32 out(w, h, 0);
-  const bool small_table = T.back() + T.size() < (std::uint64_t(1) << 32);
+  const auto dmax = static_cast<std::int16_t>(max_disparity);
+  const auto wcap = static_cast<std::int16_t>(window);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (int y = 0; y < h; ++y) {
-    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
-    std::vector<std::uint32_t> hist(std::size_t(max_disparity) + 1, 0);
+    const std::int16_t* __restrict d = disp.row(y);
+    std::int16_t* __restrict b = bins.row(y);
+    for (int x = 0; x < w; ++x) {
+      const auto v = static_cast<std::int16_t>((d[x] + kDispScale / 2) >> kDispShift);
+      b[x] = d[x] == kInvalidDisp ? std::int16_t(-1) : std::min(v, dmax);
+    }
+  }
+  // Branch-free and restrict-qualified so the compiler vectorises it (a row depends on the one
+  // below it, the columns of a row do not).
+  std::fill(run.row(h - 1), run.row(h - 1) + w, std::int16_t(1));
+  for (int y = h - 2; y >= 0; --y) {
+    const std::int16_t* __restrict b = bins.row(y);
+    const std::int16_t* __restrict b1 = bins.row(y + 1);
+    const std::int16_t* __restrict rl1 = run.row(y + 1);
+    std::int16_t* __restrict rl = run.row(y);
+    for (int x = 0; x < w; ++x) {
+      const auto next = static_cast<std::int16_t>(std::min<std::int16_t>(static_cast<std::int16_t>(rl1[x] + 1), wcap));
+      rl[x] = b[x] == b1[x] ? next : std::int16_t(1);
+    }
+  }
+  // Once per map as well: same(x, y) = the vertical run, downwards, over which the column at x
+  // equals the column at x - window bin for bin (capped at the window). When the column entering
+  // a block (x + r) equals the one leaving it (x - r - 1) over all the block's rows, the
+  // histogram, and so the entropy, does not change: common inside segments wider than the window.
+  ImageI16 same(w, h, 0);
+  for (int y = h - 1; y >= 0; --y) {
+    const std::int16_t* __restrict b = bins.row(y);
+    const std::int16_t* __restrict s1 = y + 1 < h ? same.row(y + 1) : nullptr;
+    std::int16_t* __restrict s = same.row(y);
+    for (int x = window; x < w; ++x) {
+      const auto below = static_cast<std::int16_t>(s1 ? std::min<std::int16_t>(static_cast<std::int16_t>(s1[x] + 1), wcap) : 1);
+      s[x] = b[x] == b[x - window] ? below : std::int16_t(0);
+    }
+  }
+  ImageI32 out(w, h, 0);
+  // eq. (14)'s division by n <= w^2 as a multiplication by recip[n] = ceil(2^32 / n): for a
+  // dividend q < 2^32 / n, floor(q * recip[n] / 2^32) = floor(q / n) exactly (the error term
+  // q * (recip[n] - 2^32 / n) / 2^32 < q / 2^32 < 1 / n cannot carry past the next multiple of
+  // 1 / n). The dividend is at most T[n] + n / 2, so this holds when (T[w^2] + w^2) * w^2 < 2^32,
+  // i.e. windows up to 9; larger windows divide.
+  const std::uint64_t nmax = T.size() - 1;
+  const bool reciprocal = (T.back() + nmax) * nmax < (std::uint64_t(1) << 32);
+  std::vector<std::uint64_t> recip(T.size(), 0);
+  for (std::uint64_t k = 1; k <= nmax; ++k) recip[k] = ((std::uint64_t(1) << 32) + k - 1) / k;
+  const bool small_table = T.back() + T.size() < (std::uint64_t(1) << 32);
+  const std::uint64_t* __restrict Tp = T.data();
+  const std::uint64_t* __restrict Rp = recip.data();
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < h; ++y) {
+    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r), nr = y1 - y0 + 1;
+    std::vector<std::uint32_t> hist_v(std::size_t(max_disparity) + 1, 0);
+    std::uint32_t* __restrict hist = hist_v.data();
+    const std::int16_t* __restrict bcol = bins.row(y0);  // column x of the block: bcol[x + k*w]
+    const std::int16_t* __restrict rcol = run.row(y0);
+    const std::int16_t* __restrict srow = same.row(y0);
+    std::int32_t* __restrict o = out.row(y);
     std::uint64_t n = 0, sum_t = 0;
     // Adds (sign +1) or removes (-1) one column of the block, one vertical run at a time:
     // c -> c +- k in one table step.
     auto add_col = [&](int x, int sign) {
-      int yy = y0;
-      while (yy <= y1) {
-        const std::int16_t b = bins.at(x, yy);
-        const int k = std::min<int>(run.at(x, yy), y1 - yy + 1);
-        yy += k;
+      int k0 = 0;
+      while (k0 < nr) {
+        const std::size_t at = std::size_t(k0) * std::size_t(w) + std::size_t(x);
+        const std::int16_t b = bcol[at];
+        const int k = std::min<int>(rcol[at], nr - k0);
+        k0 += k;
         if (b < 0) continue;
         std::uint32_t& c = hist[std::size_t(b)];
         const auto uk = static_cast<std::uint32_t>(k);
-        if (sign > 0) { sum_t += T[c + uk] - T[c]; c += uk; n += uk; }
-        else          { sum_t -= T[c] - T[c - uk]; c -= uk; n -= uk; }
+        if (sign > 0) { sum_t += Tp[c + uk] - Tp[c]; c += uk; n += uk; }
+        else          { sum_t -= Tp[c] - Tp[c - uk]; c -= uk; n -= uk; }
       }
     };
     for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);
     for (int x = 0; x < w; ++x) {
-      if (x - r - 1 >= 0) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
-      if (x + r < w) add_col(x + r, +1);
-      // eq. (14): detail::entropy_q16 with a 32-bit division when the table fits (w <= 33: T[w^2]
-      // < 2^32), the same integer quotient at about half the cost of the 64-bit one.
-      if (small_table) {
+      const bool leave = x - r - 1 >= 0, enter = x + r < w;
+      if (leave && enter && srow[x + r] >= nr) {  // the same column leaves and enters
+        o[x] = o[x - 1];
+        continue;
+      }
+      if (leave) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
+      if (enter) add_col(x + r, +1);
+      // eq. (14): detail::entropy_q16's integer quotient, by the reciprocal (windows <= 9), a
+      // 32-bit division when the table fits (w <= 33: T[w^2] < 2^32) or the 64-bit one.
+      if (reciprocal) {
+        const std::uint64_t tn = Tp[n];
+        o[x] = n == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(((tn - sum_t + n / 2) * Rp[n]) >> 32);
+      } else if (small_table) {
         const auto n32 = static_cast<std::uint32_t>(n);
-        const auto tn = static_cast<std::uint32_t>(T[n]), st = static_cast<std::uint32_t>(sum_t);
-        out.at(x, y) = n32 == 0 || tn <= st ? 0 : static_cast<std::int32_t>((tn - st + n32 / 2) / n32);
+        const auto tn = static_cast<std::uint32_t>(Tp[n]), st = static_cast<std::uint32_t>(sum_t);
+        o[x] = n32 == 0 || tn <= st ? 0 : static_cast<std::int32_t>((tn - st + n32 / 2) / n32);
       } else {
-        out.at(x, y) = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+        o[x] = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
       }
     }
   }
