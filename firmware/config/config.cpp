@@ -160,6 +160,8 @@ MatcherParams to_params(const Values& v) {
   p.cost.subpixel = v.flag("cost.subpixel");
   p.cost.gradient_gain_compensation = v.flag("cost.gradient_gain_compensation");
   p.cost.gradient_gain_deadband = v.num("cost.gradient_gain_deadband");
+  p.cost.gradient_gain_trigger = v.str("cost.gradient_gain_trigger") == "gradient" ? GainTrigger::Gradient : GainTrigger::Grey;
+  p.cost.gradient_gain_grey_shift = v.num("cost.gradient_gain_grey_shift");
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.lr.max_diff = i("lr_check.max_diff");
@@ -254,7 +256,10 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nnmi_candidates = " << p.cost.nmi_candidates << "\nsubpixel = " << (p.cost.subpixel ? "true" : "false")
     << "\ngradient_gain_compensation = " << (p.cost.gradient_gain_compensation ? "true" : "false")
     << "\ngradient_gain_deadband = " << fmt_num(p.cost.gradient_gain_deadband)
-    << (p.cost.gradient_gain_deadband == std::floor(p.cost.gradient_gain_deadband) ? ".0" : "") << "\n\n"
+    << (p.cost.gradient_gain_deadband == std::floor(p.cost.gradient_gain_deadband) ? ".0" : "")
+    << "\ngradient_gain_trigger = \"" << (p.cost.gradient_gain_trigger == GainTrigger::Gradient ? "gradient" : "grey") << "\""
+    << "\ngradient_gain_grey_shift = " << fmt_num(p.cost.gradient_gain_grey_shift)
+    << (p.cost.gradient_gain_grey_shift == std::floor(p.cost.gradient_gain_grey_shift) ? ".0" : "") << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window

@@ -49,6 +49,24 @@ def test_gradient_gain_compensation_undoes_a_gain_and_respects_the_dead_band():
     assert f0 == 1.0 and not flat.any()
 
 
+def test_grey_quantile_shift_matches_sorting_and_detects_a_gain():
+    rng = np.random.default_rng(4)
+    for h, w in [(9, 17), (31, 53), (7, 1)]:
+        a = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        b = rng.integers(40, 200, (h, w)).astype(np.uint8)
+
+        def q(img, p):
+            v = np.sort(img.ravel())
+            return int(v[-(-p * v.size // 100) - 1])
+
+        want = sum(abs(q(a, p) - q(b, p)) for p in range(5, 100, 5)) / 19.0
+        assert image.grey_quantile_shift(a, b) == want
+        assert image.grey_quantile_shift(a, a) == 0.0
+    img = texture(40, 64, seed=2, blur=0.8)
+    dim = np.floor(img * 0.6 + 0.5).astype(np.uint8)
+    assert image.grey_quantile_shift(img, dim) > 13.0  # the default gradient_gain_grey_shift
+
+
 def test_gradient_extremes():
     img = np.zeros((5, 6), np.uint8)
     img[:, 3:] = 255

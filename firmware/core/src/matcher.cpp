@@ -68,8 +68,15 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
 
   ImageU16 grad_l, grad_r;                                                              // eq. (5)
   detail::run_pair(threads, [&] { grad_l = gradient_magnitude(left); }, [&] { grad_r = gradient_magnitude(right); });
-  if (p.cost.gradient_gain_compensation)
-    r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);
+  if (p.cost.gradient_gain_compensation) {  // docs/algorithm.md 2b (not in the paper)
+    if (p.cost.gradient_gain_trigger == GainTrigger::Gradient) {
+      r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);
+    } else {
+      r.grey_quantile_shift = grey_quantile_shift(left, right);
+      if (r.grey_quantile_shift > p.cost.gradient_gain_grey_shift)
+        r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, 0.0);
+    }
+  }
   clock.lap(Stage::Gradient);
 
   detail::run_pair(

@@ -2,6 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <tuple>
+#include <vector>
+
+#include "config.hpp"
+#include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/stages.hpp"
 #include "test_util.hpp"
 
@@ -95,5 +101,53 @@ TEST(Gradient, GainCompensationScalesTheOtherImageOutsideTheDeadBand) {
   ImageU16 flat(53, 31, 0);
   EXPECT_EQ(compensate_gradient_gain(gl, flat, 0.0), 65536u);
 }
+}  // namespace
+}  // namespace fs
+
+namespace fs {
+namespace {
+
+// grey_quantile_shift against sorting: quantile p = the sorted value at index ceil(p * N / 100) - 1.
+double quantile_shift_reference(const ImageU8& a, const ImageU8& b) {
+  auto q = [](const ImageU8& img, int p) {
+    std::vector<std::uint8_t> v(img.data.begin(), img.data.end());
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size(), idx = (std::size_t(p) * n + 99) / 100 - 1;
+    return int(v[idx]);
+  };
+  int s = 0;
+  for (int p = 5; p <= 95; p += 5) s += std::abs(q(a, p) - q(b, p));
+  return s / 19.0;
+}
+
+TEST(Gradient, GreyQuantileShiftMatchesSortingOnOddSizes) {
+  for (auto [w, h, seed] : {std::tuple{17, 9, 1u}, {53, 31, 2u}, {1, 7, 3u}, {101, 3, 4u}}) {
+    const ImageU8 a = test::texture_image(w, h, seed), b = test::random_image(w, h, seed + 10);
+    EXPECT_DOUBLE_EQ(grey_quantile_shift(a, b), quantile_shift_reference(a, b)) << w << "x" << h;
+    EXPECT_DOUBLE_EQ(grey_quantile_shift(a, a), 0.0);
+  }
+}
+
+// The matcher's default trigger ("grey"): a right camera at 0.6x gain shifts the grey levels by far
+// more than gradient_gain_grey_shift and its gradients are rescaled; the same camera pair without
+// the gain (the right view is shifted content only) is left alone.
+TEST(Gradient, GreyTriggerActsOnAGainNotOnContent) {
+  const ImageU8 l = test::texture_image(96, 40, 5u), r = test::shifted_right(l, 4);
+  ImageU8 dim = r;
+  for (auto& v : dim.data) v = static_cast<std::uint8_t>((v * 6 + 5) / 10);
+  MatcherParams p;
+  p.cost.max_disparity = 16;
+  ASSERT_EQ(p.cost.gradient_gain_trigger, GainTrigger::Grey);
+  const Matcher m(p, load_fis_definition(""));
+  const MatchResult clean = m.match(l, r), gain = m.match(l, dim);
+  EXPECT_LT(clean.grey_quantile_shift, p.cost.gradient_gain_grey_shift);
+  EXPECT_EQ(clean.gradient_gain_q16, 65536u);
+  EXPECT_GT(gain.grey_quantile_shift, p.cost.gradient_gain_grey_shift);
+  EXPECT_GT(gain.gradient_gain_q16, 65536u * 3 / 2);  // ~1/0.6
+  // Trigger off: the same gain passes through unscaled.
+  p.cost.gradient_gain_compensation = false;
+  EXPECT_EQ(Matcher(p, load_fis_definition("")).match(l, dim).gradient_gain_q16, 65536u);
+}
+
 }  // namespace
 }  // namespace fs

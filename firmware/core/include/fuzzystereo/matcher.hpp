@@ -32,6 +32,7 @@ struct MatchResult {
   ImageI16 disp_final;                      // Q4, after densify (== disp_esr when densify disabled)
   ImageU8 densify_changed;                  // 0 kept, 1 filled, 2 removed as a speckle (then filled)
   std::uint32_t gradient_gain_q16 = 65536;  // factor applied to the right gradients (Q16; 65536 = none)
+  double grey_quantile_shift = 0.0;         // grey-level shift that decided it [levels] (trigger "grey")
   StageTimings timings;
 };
 

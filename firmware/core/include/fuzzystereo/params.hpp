@@ -5,6 +5,12 @@
 
 namespace fs {
 
+// What decides that the right image's gradients are rescaled (docs/algorithm.md 2b).
+enum class GainTrigger {
+  Grey,      // the grey-level distributions differ (grey_quantile_shift > gradient_gain_grey_shift)
+  Gradient,  // the mean gradient magnitudes differ by more than gradient_gain_deadband (session 6)
+};
+
 struct SegmentationParams {
   int region_size = 8;       // S [px]
   int compactness = 20;      // m
@@ -20,6 +26,8 @@ struct CostParams {
   bool subpixel = true;     // parabola fit on the FIS scores around the winner
   bool gradient_gain_compensation = true;  // scale the right gradients to the left's level (eq. 5-7)
   double gradient_gain_deadband = 0.2;     // ... when their mean magnitudes differ by more than this
+  GainTrigger gradient_gain_trigger = GainTrigger::Grey;  // ... or when the grey levels differ:
+  double gradient_gain_grey_shift = 13.0;  // mean |quantile difference| [grey levels] above which
   int inject_shift = 0;     // TEST ONLY: adds a bias to the right-image shift (fault injection)
 };
 

@@ -22,6 +22,7 @@ ImageU16 gradient_magnitude(const ImageU8& img);
 // f = round(2^16 * sum_ref / sum_other) (Q16, at most 2^20). Returns f (65536 = unchanged; also for
 // an all-zero image).
 std::uint32_t compensate_gradient_gain(const ImageU16& ref, ImageU16& other, double deadband);
+double grey_quantile_shift(const ImageU8& a, const ImageU8& b);
 
 // ---- segmentation/ --------------------------------------------------------------------------
 // Horizontal run of one segment in one row: pixels [x0, x1) of row y.

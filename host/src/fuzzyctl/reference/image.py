@@ -64,3 +64,18 @@ def compensate_gradient_gain(ref: np.ndarray, other: np.ndarray, deadband: float
         return other, 1.0
     ratio = min(ratio, 16.0)
     return np.minimum(1443.0, np.floor(other * ratio + 0.5)), ratio
+
+
+def grey_quantile_shift(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean absolute difference [grey levels] of the 5 %, 10 %, ..., 95 % grey-level quantiles of
+    two 8-bit images (quantile p: the smallest level v with 100 * #(<= v) >= p * N), twin of the
+    firmware's ``grey_quantile_shift`` (exact: integers). Decides the gradient gain compensation
+    under ``gradient_gain_trigger = "grey"`` (docs/algorithm.md 2b)."""
+    if a.size == 0 or b.size == 0:
+        return 0.0
+
+    def quantiles(img: np.ndarray) -> np.ndarray:
+        c = np.cumsum(np.bincount(img.ravel(), minlength=256)).astype(np.int64)
+        return np.array([min(int(np.searchsorted(100 * c, p * img.size)), 255) for p in range(5, 100, 5)])
+
+    return float(np.abs(quantiles(a) - quantiles(b)).sum()) / 19.0

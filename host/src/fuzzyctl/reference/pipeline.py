@@ -85,7 +85,10 @@ def match(
     grad_l = image.gradient_magnitude(left)  # eq. (5)
     grad_r = image.gradient_magnitude(right)
     if c.gradient_gain_compensation:  # not in the paper: docs/algorithm.md 2b
-        grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, c.gradient_gain_deadband)
+        if c.gradient_gain_trigger == "gradient":
+            grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, c.gradient_gain_deadband)
+        elif image.grey_quantile_shift(left, right) > c.gradient_gain_grey_shift:
+            grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, 0.0)
     clock.lap("gradient")
 
     seg_args = (s.region_size, s.compactness, s.iterations, s.min_segment_pct)
