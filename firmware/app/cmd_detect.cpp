@@ -46,7 +46,7 @@ void run_detect(const DetectOptions& o) {
   const cv::Mat raw = read_image(o.left, cv::IMREAD_UNCHANGED);
   const bool mono = raw.channels() == 1;
   const cv::Mat lc = read_image(o.left, cv::IMREAD_COLOR);
-  ImageI16 disp, seg;  // seg: the matcher's per-segment WTA map for [detect] grow_rel_disparity
+  ImageI16 disp;
   StageTimings mt;
   bool matched = false;
   if (!o.disparity.empty()) {
@@ -63,13 +63,12 @@ void run_detect(const DetectOptions& o) {
     const Matcher matcher(detection_matcher_params(cfg.matcher, in), load_fis_definition(""));
     const MatchResult mr = matcher.match(to_core_gray(lc), to_core_gray(rc));
     disp = detection_disparity(mr, in);  // [detect] input: disp_esr or the densified disp_final
-    seg = mr.disp_left_wta;
     mt = mr.timings;
     matched = true;
   }
   const ImageRgb8 rgb = mono ? ImageRgb8{} : to_core_rgb(lc);
   const Detector detector(dp);
-  const DetectResult r = detector.detect(disp, rgb, calib, seg);
+  const DetectResult r = detector.detect(disp, rgb, calib);
 
   std::filesystem::create_directories(o.out);
   nlohmann::json j = obstacles_json(r, calib, disp.width, disp.height);
@@ -91,7 +90,7 @@ void run_detect(const DetectOptions& o) {
   const cv::Mat df = disp_q4_to_float(disp);
   write_image(o.out + "/disp_color.png", colorize_disparity(df, std::max(16, r.bins)));
   if (matched) write_disp_kitti(o.out + "/disp_left.png", df);
-  if (o.dump) write_detect_dump(o.out + "/dump", disp, rgb, calib, config_to_toml(cfg.values), r, seg);
+  if (o.dump) write_detect_dump(o.out + "/dump", disp, rgb, calib, config_to_toml(cfg.values), r);
 
   std::printf("fuzzystereo detect: %dx%d, disparity from %s, road %s (d = %.3f v %+.2f, horizon row %d), sky %s\n",
               disp.width, disp.height, matched ? "the matcher" : "file", r.road.found ? "found" : "not found", r.road.a,

@@ -225,9 +225,6 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
 // map and [densify], exactly what the matcher runs (matcher.cpp), so the result is bit-identical to the
 // matcher's disp_final, and one cache serves every [densify] setting. The recorded matcher config therefore
 // carries [densify] at its defaults with enabled = false (the settings the ESR maps are independent of).
-// DIR/NNNNNN_10_seg.png (same encoding) holds the matcher's per-segment WTA map (disp_left_wta) for the
-// segment extent ([detect] grow_rel_disparity); a frame whose _seg.png is missing (a cache from before
-// session 7) is matched again and both files written.
 constexpr const char* kCacheMap = "esr";
 
 void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml) {
@@ -339,26 +336,21 @@ void run_detect_eval(const EvalOptions& o) {
       gt.push_back(x);
     }
     const cv::Mat lc = read_image((tr / "image_2" / (s + ".png")).string(), cv::IMREAD_COLOR);
-    ImageI16 disp, seg;  // seg: the matcher's per-segment WTA map (none with the oracle)
+    ImageI16 disp;
     StageTimings mt;
     bool frame_matched = false;
     if (o.oracle) {
       disp = read_kitti_disparity_q4((tr / "disp_occ_0" / (s + ".png")).string());
-    } else if (use_cache && read_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), &disp) &&
-               read_cached_disp(stdfs::path(o.disparity_cache) / (s + "_seg.png"), &seg)) {
+    } else if (use_cache && read_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), &disp)) {
       timed = false;
     } else {
       const cv::Mat rc = read_image((tr / "image_3" / (s + ".png")).string(), cv::IMREAD_COLOR);
       if (rc.size() != lc.size()) throw UserError("frame " + s + ": left and right sizes differ");
       const MatchResult mr = matcher->match(to_core_gray(lc), to_core_gray(rc));
       disp = mr.disp_esr;
-      seg = mr.disp_left_wta;
       mt = mr.timings;
       frame_matched = true;
-      if (use_cache) {
-        write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
-        write_cached_disp(stdfs::path(o.disparity_cache) / (s + "_seg.png"), seg);
-      }
+      if (use_cache) write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
     }
     if (densify_after) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -367,7 +359,7 @@ void run_detect_eval(const EvalOptions& o) {
       densify_ms += mt.ms[std::size_t(Stage::Densify)];
     }
     if (disp.width != lc.cols || disp.height != lc.rows) throw UserError("frame " + s + ": disparity size differs from the image");
-    const DetectResult r = detector.detect(disp, to_core_rgb(lc), calib, seg);
+    const DetectResult r = detector.detect(disp, to_core_rgb(lc), calib);
     Tally t = score_frame(gt, r, o);
     mask_iou(r.road_mask, tr / "sim_gt" / (s + "_road.png"), &t.road_i, &t.road_u);
     mask_iou(r.sky_mask, tr / "sim_gt" / (s + "_sky.png"), &t.sky_i, &t.sky_u);

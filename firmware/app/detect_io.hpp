@@ -53,7 +53,6 @@ nlohmann::json obstacles_json(const DetectResult& r, const StereoCalib& calib, i
 cv::Mat draw_overlay(const cv::Mat& left_bgr, const DetectResult& r);
 // Every detect stage's inputs and outputs as .npy + detect_meta.json in `dir`.
 void write_detect_dump(const std::string& dir, const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib,
-                       const std::string& config_toml, const DetectResult& r,
-                       const ImageI16& seg = ImageI16{});
+                       const std::string& config_toml, const DetectResult& r);
 
 }  // namespace fs::app

@@ -495,7 +495,7 @@ LoopResult RobotLoop::run() {
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
     const ImageI16& det_disp = detection_disparity(mr, det_input);  // [detect] input
-    const DetectResult det = detector.detect(det_disp, rgb_left, I.calib, mr.disp_left_wta);
+    const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
     stage_ms["detect"].push_back(wall_ms_since(s1));
 
     // ---- track ----

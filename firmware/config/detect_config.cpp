@@ -66,9 +66,6 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.foot_slack_px = v.num("detect.foot_slack_px");
   p.trim_col_min_share = v.num("detect.trim_col_min_share");
   p.trim_col_top_share = v.num("detect.trim_col_top_share");
-  p.grow_rel_disparity = v.num("detect.grow_rel_disparity");
-  p.grow_max_share = v.num("detect.grow_max_share");
-  p.grow_sky = v.flag("detect.grow_sky");
   p.road_slope_prior_rel = v.num("detect.road_slope_prior_rel");
   p.below_road_drop_share = v.num("detect.below_road_drop_share");
   p.split_min_rel = v.num("detect.split_min_rel");

@@ -214,45 +214,6 @@ def test_edge_continuity_joins_a_slanted_surface():
     assert refdet.merge_edges(comp, d, 4, roots, 8, 0.05, 30)[1:].tolist() == [1, 2, 3, 4]  # whole pieces: 11 %
 
 
-def _part_obstacle(id_=0, x0=10, x1=14, d=10.0):
-    return refdet.Obstacle(id_, (x0, 5, x1, 20), (x1 - x0 + 1) * 16, d, 1.0, 0.0, "near")
-
-
-def test_segment_extent_grows_over_agreeing_segments():
-    # As tests/cpp/core/test_detect_grow.cpp: superpixels at 10 px over x 10..24, rows 5..20, of which only
-    # x 10..14 survived the LR check; background segments at 5 px.
-    h, w = 30, 40
-    seg = np.full((h, w), 5.0)
-    seg[5:21, 10:25] = 10.0
-    disp = np.full((h, w), np.nan)
-    disp[5:21, 10:15] = 10.0
-    zeros = np.zeros((h, w), np.uint8)
-    calib = {"cx": 20.0, "focal_px": 100.0}
-
-    def run(rel, share, disp=disp, road=zeros, sky=zeros, seg=seg):
-        ol = np.zeros((h, w), np.int32)
-        ol[5:21, 10:15] = 1
-        o = [_part_obstacle()]
-        refdet.grow_extent(o, ol, seg, disp, road, sky, calib, params(grow_rel_disparity=rel, grow_max_share=share))
-        return o[0], ol
-
-    o, ol = run(0.05, 2.0)
-    assert o.box == (10, 5, 24, 20) and o.pixel_count == 240 and ol[12, 24] == 1 and ol[12, 25] == 0
-    assert o.lateral_m == pytest.approx((17.0 - 20.0) / 100.0)
-    assert run(0.0, 2.0)[0].box == (10, 5, 14, 20)
-    assert run(0.05, 0.5)[0].box == (10, 5, 16, 20)  # margin int(0.5 * 5) = 2 columns
-    other = disp.copy()
-    other[:, 20] = 5.0  # a column measured at another depth stops it
-    assert run(0.05, 2.0, disp=other)[0].box[2] == 19
-    road = zeros.copy()
-    road[:, 18] = 1
-    assert run(0.05, 2.0, road=road)[0].box[2] == 17
-    far = seg.copy()
-    far[5:21, 15:25] = 10.6  # beyond max(0.25, 5 % of 10) = 0.5 px
-    assert run(0.05, 2.0, seg=far)[0].box[2] == 14
-    assert run(0.05, 2.0, seg=None)[0].box[2] == 14
-
-
 def test_below_road_drops_and_renumbers():
     # As tests/cpp/core/test_detect_below_road.cpp: road line d = 0.2 (v - 50).
     h, w = 120, 60

@@ -84,12 +84,7 @@ def run_reference_on_dump(dump_dir: Path):
     disp = np.where(q4 >= 0, q4.astype(np.float64) / 16.0, np.nan)
     rgb_path = dump_dir / "left_rgb.npy"
     rgb = np.load(rgb_path) if rgb_path.is_file() else None
-    seg_path = dump_dir / "seg.npy"  # the matcher's per-segment WTA map (segment extent); absent on --disparity
-    seg = None
-    if seg_path.is_file():
-        sq4 = np.load(seg_path)
-        seg = np.where(sq4 >= 0, sq4.astype(np.float64) / 16.0, np.nan)
-    return meta, refdet.detect(disp, rgb, meta["calib"], refdet.params_from_config(cfg), seg)
+    return meta, refdet.detect(disp, rgb, meta["calib"], refdet.params_from_config(cfg))
 
 
 def compare_detect(run_dir: Path, tolerances: Path | None = None) -> DetectComparison:

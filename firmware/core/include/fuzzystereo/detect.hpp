@@ -103,14 +103,10 @@ struct DetectParams {
                                    // cut off the box (0 = off)
   double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
                                    // obstacle's depth) lies lower than this share of the box height (0 = off)
-  // ---- segment extent (session 7, docs/detection.md "(e) Segment extent") ----
-  double grow_rel_disparity = 0.0; // grow each obstacle over touching pixels whose per-segment (superpixel WTA)
-                                   // disparity lies within this share of its own (0 = off)
-  double grow_max_share = 0.5;     // ... at most this share of the box width / height beyond each side
-  bool grow_sky = false;           // ... and over sky-masked pixels whose own (checked) disparity agrees
-  double road_slope_prior_rel = 0.0;  // with a known mounting (calib height_m > 0) the road line's slope must lie
+  // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
+  double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
                                    // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
-  double below_road_drop_share = 0.0;  // obstacles with at least this share of their pixels below the road at
+  double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
@@ -286,16 +282,6 @@ void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::i
 void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
                          const DetectParams& p, const ImageU8* sky = nullptr, const ImageI16* disp = nullptr);
 
-// Segment extent (docs/detection.md "(e) Segment extent"): each obstacle (nearest first) grows over 8-connected
-// pixels that belong to no obstacle, are not road, whose segment disparity seg (Q4, the matcher's
-// per-superpixel WTA map, dense) lies within tol = max(cc_min_step_px, grow_rel_disparity * d) of its median d,
-// whose own disparity (disp) is invalid or also within tol, and that lie within grow_max_share of the box
-// width / height beyond its sides. Sky pixels (sky != 0) only with grow_sky and a valid own disparity within
-// tol (the colour rule (b) also takes bright or blue obstacle parts above the horizon). Grown pixels join `labels`; box, pixel_count and lateral_m follow (distance
-// unchanged). grow_rel_disparity <= 0 or seg empty: unchanged.
-void grow_extent(std::vector<Obstacle>& obstacles, ImageI32& labels, const ImageI16& seg, const ImageI16& disp,
-                 const ImageU8& road, const ImageU8& sky, const StereoCalib& calib, const DetectParams& p);
-
 // Below the road (docs/detection.md "(e) Below the road"): a pixel of an obstacle of median disparity d lies
 // below the road at its own depth when its row's line value exceeds d by more than the road band there
 // (line_q4[v] - d > round(16 * road_tolerance_px + road_tolerance_rel * line_q4[v])): nothing standing on a
@@ -316,10 +302,7 @@ class Detector {
   // disp: refined left disparity (Q4). rgb: left colour image of the same size, or empty for a mono
   // camera (the sky stage is skipped). calib: focal_px and baseline_m must be > 0 (checked by the
   // caller when loading the calibration).
-  // seg: optional per-segment disparity map (Q4, the matcher's MatchResult::disp_left_wta) for the segment
-  // extent (grow_rel_disparity); empty = not used.
-  DetectResult detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib,
-                      const ImageI16& seg = ImageI16{}) const;
+  DetectResult detect(const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib) const;
   const DetectParams& params() const { return params_; }
 
  private:

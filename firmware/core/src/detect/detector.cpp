@@ -45,8 +45,7 @@ Detector::Detector(const DetectParams& params)
     : params_(params), scratch_(std::make_unique<detect::UDispScratch>()) {}
 Detector::~Detector() = default;
 
-DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, const StereoCalib& calib,
-                              const ImageI16& seg) const {
+DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, const StereoCalib& calib) const {
   using clock = std::chrono::steady_clock;
   const std::lock_guard<std::mutex> lock(scratch_mu_);
   const DetectParams& p = params_;
@@ -119,9 +118,6 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
   // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
   detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
-  // Segment extent (session 7): grow over touching superpixels at the obstacle's depth.
-  if (!seg.empty() && seg.width == w && seg.height == h)
-    detect::grow_extent(r.obstacles, r.obstacle_labels, seg, disp, r.road_mask, r.sky_mask, calib, p);
   // Box extent (our addition): sparse side columns cut, then the foot rows the road band removed.
   detect::trim_sparse_columns(r.obstacles, r.obstacle_labels, calib, p, &r.sky_mask, &disp);
   detect::extend_to_ground(r.obstacles, r.road_line_q4, p);

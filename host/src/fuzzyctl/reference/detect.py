@@ -682,53 +682,9 @@ def drop_below_road(obstacles: list, ol: np.ndarray, a: float, b: float, horizon
     return kept
 
 
-def grow_extent(obstacles: list, ol: np.ndarray, seg: np.ndarray, disp: np.ndarray, road: np.ndarray,
-                sky: np.ndarray, calib: dict, p: DetectParams) -> None:
-    """Segment extent (docs/detection.md "(e) Segment extent"): each obstacle, nearest first, grows over
-    8-connected pixels of no obstacle, not road, not sky (sky: with grow_sky, on its own disparity alone), whose segment disparity seg (px, NaN = none) lies
-    within tol = max(cc_min_step_px, grow_rel_disparity * d) of its disparity and whose own disparity is
-    NaN or also within tol, inside grow_max_share of the box size beyond each side. Repeated 3x3 dilation
-    restricted to the free pixels (= the flood fill); box, pixel count and lateral X follow."""
-    if p.grow_rel_disparity <= 0 or seg is None:
-        return
-    h, w = ol.shape
-    kernel = np.ones((3, 3), np.uint8)
-    for o in obstacles:
-        x0, y0, x1, y1 = o.box
-        d = o.disparity_px
-        tol = max(p.cc_min_step_px, p.grow_rel_disparity * d) + 1e-9
-        mx, my = int(p.grow_max_share * (x1 - x0 + 1)), int(p.grow_max_share * (y1 - y0 + 1))
-        gx0, gx1, gy0, gy1 = max(0, x0 - mx), min(w - 1, x1 + mx), max(0, y0 - my), min(h - 1, y1 + my)
-        win = (slice(gy0, gy1 + 1), slice(gx0, gx1 + 1))
-        with np.errstate(invalid="ignore"):
-            own = np.abs(disp[win] - d) <= tol
-            free = ((ol[win] == 0) & (road[win] == 0)
-                    & np.where(sky[win] > 0, bool(p.grow_sky) & own,  # sky: only on its own checked disparity
-                               (np.abs(seg[win] - d) <= tol) & (~np.isfinite(disp[win]) | own)))
-        cur = (ol[win] == o.id + 1).astype(np.uint8)
-        grown = np.zeros_like(cur)
-        while True:
-            new = (cv2.dilate(cur, kernel) > 0) & free & (cur == 0)
-            if not new.any():
-                break
-            cur[new] = 1
-            grown[new] = 1
-        if not grown.any():
-            continue
-        ol[win][grown > 0] = o.id + 1
-        ys, xs = np.nonzero(ol[win] == o.id + 1)
-        bx0, by0 = gx0 + int(xs.min()), gy0 + int(ys.min())
-        bx1, by1 = gx0 + int(xs.max()), gy0 + int(ys.max())
-        o.box = (min(x0, bx0), min(y0, by0), max(x1, bx1), max(y1, by1))
-        o.pixel_count += int(grown.sum())
-        o.lateral_m = (0.5 * (o.box[0] + o.box[2]) - calib["cx"]) * o.distance_m / calib["focal_px"]
-
-
-def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams,
-           seg: np.ndarray | None = None) -> DetectReferenceResult:
+def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
-    calib: focal_px, baseline_m, cx, cy. seg: the matcher's per-segment WTA disparity [px] (NaN = none) for
-    the segment extent, or None."""
+    calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
     h, w = disp.shape
     disp = fill_holes(disp, int(p.fill_max_run_px), bool(p.fill_left_border))
     valid = np.isfinite(disp)
@@ -798,7 +754,6 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         out.append(o)
     if found:
         out = drop_below_road(out, ol, a, b, horizon, p)  # docs/detection.md "(e) Below the road"
-    grow_extent(out, ol, seg, disp, road, sky, calib, p)  # segment extent, docs/detection.md "(e) Segment extent"
     trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
     if found:
         extend_to_ground(out, a, b, horizon, h, p)
