@@ -227,3 +227,13 @@ def test_below_road_drops_and_renumbers():
     assert [o.box[0] for o in kept] == [0, 30] and [o.id for o in kept] == [0, 1]
     assert ol[70, 35] == 2 and ol[90, 20] == 0 and ol[90, 5] == 1
     assert len(refdet.drop_below_road(obs[:1], ol, 0.2, -10.0, 51, params(below_road_drop_share=0.0))) == 1
+
+
+def test_road_slope_prior_range():
+    # As tests/cpp/core/test_detect_slope_prior.cpp: a0 = B cos(pitch) / h = 0.1 / 0.5.
+    calib = {"baseline_m": 0.1, "height_m": 0.5, "pitch_deg": 0.0}
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.5), calib) == pytest.approx((0.2 / 1.5, 0.3))
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.0), calib) == pytest.approx((0.02, 2.0))
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.5), {**calib, "height_m": 0.0}) == pytest.approx((0.02, 2.0))
+    lo, hi = refdet.road_slope_range(params(road_slope_prior_rel=0.1, road_slope_max=0.1), calib)
+    assert lo > hi  # no line can be accepted
