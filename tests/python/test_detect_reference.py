@@ -19,8 +19,10 @@ from fuzzyctl.detect_compare import compare_detect
 from fuzzyctl.reference import detect as refdet
 
 
-def params():
-    return refdet.params_from_config(load_config())
+def params(**overrides):
+    p = refdet.params_from_config(load_config())
+    p.values.update(overrides)
+    return p
 
 
 def test_hsv_float_equations():
@@ -210,3 +212,28 @@ def test_edge_continuity_joins_a_slanted_surface():
     assert refdet.merge_edges(comp, d, 4, roots, 8, 0.0, 4)[1:].tolist() == [1, 2, 3, 4]  # off
     assert refdet.merge_edges(comp, d, 4, roots, 1, 0.05, 4)[1:].tolist() == [1, 2, 3, 4]  # gap 2 > 1
     assert refdet.merge_edges(comp, d, 4, roots, 8, 0.05, 30)[1:].tolist() == [1, 2, 3, 4]  # whole pieces: 11 %
+
+
+def test_below_road_drops_and_renumbers():
+    # As tests/cpp/core/test_detect_below_road.cpp: road line d = 0.2 (v - 50).
+    h, w = 120, 60
+    ol = np.zeros((h, w), np.int32)
+    obs = []
+    for i, (x0, d, y0, y1) in enumerate([(0, 10.0, 80, 99), (15, 5.0, 85, 95), (30, 5.0, 60, 76)]):
+        ol[y0:y1 + 1, x0:x0 + 10] = i + 1
+        obs.append(refdet.Obstacle(i, (x0, y0, x0 + 9, y1), (y1 - y0 + 1) * 10, d, 1.0, 0.0, "near"))
+    p = params(below_road_drop_share=0.5)
+    kept = refdet.drop_below_road(obs, ol, 0.2, -10.0, 51, p)
+    assert [o.box[0] for o in kept] == [0, 30] and [o.id for o in kept] == [0, 1]
+    assert ol[70, 35] == 2 and ol[90, 20] == 0 and ol[90, 5] == 1
+    assert len(refdet.drop_below_road(obs[:1], ol, 0.2, -10.0, 51, params(below_road_drop_share=0.0))) == 1
+
+
+def test_road_slope_prior_range():
+    # As tests/cpp/core/test_detect_slope_prior.cpp: a0 = B cos(pitch) / h = 0.1 / 0.5.
+    calib = {"baseline_m": 0.1, "height_m": 0.5, "pitch_deg": 0.0}
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.5), calib) == pytest.approx((0.2 / 1.5, 0.3))
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.0), calib) == pytest.approx((0.02, 2.0))
+    assert refdet.road_slope_range(params(road_slope_prior_rel=0.5), {**calib, "height_m": 0.0}) == pytest.approx((0.02, 2.0))
+    lo, hi = refdet.road_slope_range(params(road_slope_prior_rel=0.1, road_slope_max=0.1), calib)
+    assert lo > hi  # no line can be accepted

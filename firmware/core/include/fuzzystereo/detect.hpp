@@ -103,6 +103,11 @@ struct DetectParams {
                                    // cut off the box (0 = off)
   double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
                                    // obstacle's depth) lies lower than this share of the box height (0 = off)
+  // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
+  double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
+                                   // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
+  double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
+                                   // their own depth (beyond the road band) are dropped (0 = off)
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -185,6 +190,11 @@ int disparity_bins(const ImageI16& disp);
 ImageI32 v_disparity(const ImageI16& disp, int bins);
 // Weighted RANSAC + weighted least-squares refit of the road line in the v-disparity image.
 RoadLine fit_road_line(const ImageI32& vdisp, std::int64_t valid_pixels, const DetectParams& p);
+// Road slope range (docs/detection.md "(a) Slope prior"): [road_slope_min, road_slope_max], narrowed with a
+// known mounting (calib.height_m > 0, road_slope_prior_rel > 0) to [a0 / (1 + r), a0 * (1 + r)], a0 = B cos(pitch)
+// / h: the slope of a flat road's v-disparity line, d = (B / h) ((v - cy) cos(pitch) + f sin(pitch)). Returns
+// false when the two ranges do not overlap (no line can be accepted).
+bool road_slope_range(const DetectParams& p, const StereoCalib& calib, double* lo, double* hi);
 // Per row, the line's disparity in Q4 (rows above the horizon: INT32_MIN).
 std::vector<std::int32_t> road_line_table(const RoadLine& line, int rows);
 // 1 where the pixel is valid and |q4 - line_q4[v]| <= tol_q4(v) (rows below the horizon), with
@@ -271,6 +281,15 @@ void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::i
 // (distance unchanged). Both shares <= 0: unchanged. sky/disp may be null (no sky pixels count).
 void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, const StereoCalib& calib,
                          const DetectParams& p, const ImageU8* sky = nullptr, const ImageI16* disp = nullptr);
+
+// Below the road (docs/detection.md "(e) Below the road"): a pixel of an obstacle of median disparity d lies
+// below the road at its own depth when its row's line value exceeds d by more than the road band there
+// (line_q4[v] - d > round(16 * road_tolerance_px + road_tolerance_rel * line_q4[v])): nothing standing on a
+// flat road at that depth can be seen there. Obstacles with >= below_road_drop_share of their pixels
+// (labels == id + 1) so are dropped; the rest keep their order and are renumbered (ids, labels).
+// below_road_drop_share <= 0 or no line: unchanged.
+void drop_below_road(std::vector<Obstacle>& obstacles, ImageI32& labels, const std::vector<std::int32_t>& line_q4,
+                     const DetectParams& p);
 
 }  // namespace detect
 

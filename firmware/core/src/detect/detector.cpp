@@ -66,7 +66,11 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   // (a) road: v-disparity eq. (16)-(17), line fit, on-line pixels, closing.
   r.bins = detect::disparity_bins(disp);
   r.vdisp = detect::v_disparity(disp, r.bins);
-  if (p.road_enabled) r.road = detect::fit_road_line(r.vdisp, valid, p);
+  if (p.road_enabled) {
+    DetectParams pr = p;  // the slope range, narrowed by the mounting when known (slope prior)
+    if (detect::road_slope_range(p, calib, &pr.road_slope_min, &pr.road_slope_max))
+      r.road = detect::fit_road_line(r.vdisp, valid, pr);
+  }
   r.road_line_q4 = detect::road_line_table(r.road, h);
   r.road_raw = detect::road_pixels(disp, r.road_line_q4, p.road_tolerance_px, p.road_tolerance_rel);
   r.road_mask = detect::complete_road(detect::close_mask(r.road_raw, p.road_close_radius), disp, r.road_line_q4,
@@ -112,6 +116,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.components = detect::split_bimodal_components(r.components, n, disp, p.split_min_px, p.split_min_rel,
                                                   p.split_max_valley, p.split_rounds, &n);
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
+  // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
+  detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
   // Box extent (our addition): sparse side columns cut, then the foot rows the road band removed.
   detect::trim_sparse_columns(r.obstacles, r.obstacle_labels, calib, p, &r.sky_mask, &disp);
   detect::extend_to_ground(r.obstacles, r.road_line_q4, p);

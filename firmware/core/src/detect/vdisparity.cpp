@@ -188,4 +188,18 @@ ImageU8 complete_road(const ImageU8& road, const ImageI16& disp, const std::vect
   return m;
 }
 
+// Slope prior (our addition, session 7): the paper fits "the" line; with the camera's mounting known, a flat
+// road's line has slope B cos(pitch) / h (calib.hpp: d = f B / Z, ground rows), so a line far from it is not
+// the road (a radiometric frame of the tuning set, 000081, fitted a = 0.021 through two obstacles at ~7 px
+// instead of the road's 0.3, and every obstacle became road). 0 = off, and off without a mounting (KITTI).
+bool road_slope_range(const DetectParams& p, const StereoCalib& calib, double* lo, double* hi) {
+  *lo = p.road_slope_min, *hi = p.road_slope_max;
+  if (p.road_slope_prior_rel > 0 && calib.height_m > 0 && calib.baseline_m > 0) {
+    const double a0 = calib.baseline_m * std::cos(calib.pitch_rad) / calib.height_m;
+    *lo = std::max(*lo, a0 / (1.0 + p.road_slope_prior_rel));
+    *hi = std::min(*hi, a0 * (1.0 + p.road_slope_prior_rel));
+  }
+  return *lo <= *hi;
+}
+
 }  // namespace fs::detect

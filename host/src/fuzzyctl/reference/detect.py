@@ -156,6 +156,17 @@ def fit_road_line(vd: np.ndarray, valid_pixels: int, p: DetectParams) -> tuple[b
     return True, float(ba), float(bb), horizon
 
 
+def road_slope_range(p: DetectParams, calib: dict) -> tuple[float, float]:
+    """Slope prior (docs/detection.md "(a) Slope prior"): [road_slope_min, road_slope_max], narrowed with a
+    known mounting (height_m > 0) to a0 / (1 + r) .. a0 * (1 + r), a0 = B cos(pitch) / h."""
+    lo, hi = float(p.road_slope_min), float(p.road_slope_max)
+    h, base = float(calib.get("height_m", 0.0) or 0.0), float(calib["baseline_m"])
+    if p.road_slope_prior_rel > 0 and h > 0 and base > 0:
+        a0 = base * np.cos(np.radians(float(calib.get("pitch_deg", 0.0) or 0.0))) / h
+        lo, hi = max(lo, a0 / (1 + p.road_slope_prior_rel)), min(hi, a0 * (1 + p.road_slope_prior_rel))
+    return lo, hi
+
+
 def road_pixels(disp: np.ndarray, a: float, b: float, horizon: int, tol: float, rel: float = 0.0) -> np.ndarray:
     """|d - (a v + b)| <= tol + rel * (a v + b): the band grows with the line's disparity."""
     h, w = disp.shape
@@ -647,15 +658,43 @@ def trim_sparse_columns(obstacles: list, ol: np.ndarray, calib: dict, p: DetectP
         o.lateral_m = (0.5 * (o.box[0] + o.box[2]) - calib["cx"]) * o.distance_m / calib["focal_px"]
 
 
+def drop_below_road(obstacles: list, ol: np.ndarray, a: float, b: float, horizon: int, p: DetectParams) -> list:
+    """Below the road (docs/detection.md "(e) Below the road"): an obstacle with >= below_road_drop_share of
+    its pixels in rows v >= horizon where the road line a*v + b exceeds its disparity by more than the road
+    band (road_tolerance_px + road_tolerance_rel * line) is dropped; the rest are renumbered (ids, ol)."""
+    if p.below_road_drop_share <= 0 or not obstacles:
+        return obstacles
+    h = ol.shape[0]
+    v = np.arange(h, dtype=np.float64)
+    line = a * v + b
+    band = p.road_tolerance_px + p.road_tolerance_rel * np.maximum(line, 0.0)
+    kept = []
+    remap = np.zeros(len(obstacles) + 1, np.int32)
+    for o in obstacles:
+        ys, _ = np.nonzero(ol == o.id + 1)
+        below = (ys >= horizon) & (line[ys] - o.disparity_px > band[ys] + 1e-9)
+        if len(ys) and below.sum() >= p.below_road_drop_share * len(ys):
+            continue
+        kept.append(o)
+        remap[o.id + 1] = len(kept)
+        o.id = len(kept) - 1
+    ol[:] = remap[ol]
+    return kept
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
-    calib: focal_px, baseline_m, cx, cy."""
+    calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
     h, w = disp.shape
     disp = fill_holes(disp, int(p.fill_max_run_px), bool(p.fill_left_border))
     valid = np.isfinite(disp)
     bins = int(disp_bin(disp[valid]).max()) + 1 if valid.any() else 1
     vd = v_disparity(disp, bins)
-    found, a, b, horizon = (fit_road_line(vd, int(valid.sum()), p) if p.road_enabled else (False, 0.0, 0.0, -1))
+    found, a, b, horizon = False, 0.0, 0.0, -1
+    lo, hi = road_slope_range(p, calib)
+    if p.road_enabled and lo <= hi:
+        found, a, b, horizon = fit_road_line(vd, int(valid.sum()), DetectParams({**p.values, "road_slope_min": lo,
+                                                                              "road_slope_max": hi}))
     road_raw = (road_pixels(disp, a, b, horizon, p.road_tolerance_px, float(p.road_tolerance_rel)) if found
                 else np.zeros((h, w), np.uint8))
     road = close_mask(road_raw, int(p.road_close_radius))
@@ -713,6 +752,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         o.id = rank
         ol[comp == comp_ids[i]] = rank + 1
         out.append(o)
+    if found:
+        out = drop_below_road(out, ol, a, b, horizon, p)  # docs/detection.md "(e) Below the road"
     trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
     if found:
         extend_to_ground(out, a, b, horizon, h, p)
