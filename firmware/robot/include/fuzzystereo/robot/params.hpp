@@ -38,6 +38,8 @@ struct TrackerParams {
   int max_misses = 5;               // K: deleted after this many consecutive *visible* misses
   double max_coast_s = 10.0;        // deleted after this long without any measurement [s]
   bool velocity_measurement = true; // z = [p; v] with v the finite difference (eq. 31-32, H = I)
+  double max_speed_mps = 0.5;       // fastest obstacle expected: a measurement further from the
+                                    // track's last one than this speed (+ noise) allows is not its [m/s]
 };
 
 // [planner] — global grid A* + sampled-arc local planner.
