@@ -64,6 +64,10 @@ struct PlannerParams {
                                      // time the command reaches the motors (docs/robot.md)
   bool escape_inside_margin = true;  // an obstacle already inside the hard margin at t = 0 blocks
                                      // only arcs that bring the robot closer to it (docs/robot.md)
+  bool transient_not_blocking = true;  // transient circles (a tracked obstacle's possible places)
+                                       // are left out of the "blocked" (no path) decision
+  bool ignore_goal_footprint = true;   // obstacles whose inflated disc covers the goal are left out
+                                       // of the global search (the local planner still avoids them)
 };
 
 // [watchdog]
