@@ -51,7 +51,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
       const double speed_gate = p_.max_speed_mps * dtm + kSpeedGateSigmas * std::sqrt(sigma * sigma + tr.last_meas_var) +
                                 std::abs(m.radius_m - tr.last_meas_radius_m);
-      if (norm(m.p - tr.last_meas_p) > speed_gate) continue;
+      if (p_.max_speed_mps > 0 && norm(m.p - tr.last_meas_p) > speed_gate) continue;
       cands.push_back({d, ti, mi});
     }
   }
