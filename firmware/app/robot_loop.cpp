@@ -573,7 +573,7 @@ LoopResult RobotLoop::run() {
           const double dist = robot::norm(tr.pos() - pose.pos());
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
               dist > tr.radius_m + I.rp.radius_m) {
-            obstacles.push_back({tr.pos(), tr.radius_m, {}});
+            obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
             kinds.push_back('n');
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
@@ -582,6 +582,7 @@ LoopResult RobotLoop::run() {
             CircleObstacle reach;
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, robot::norm(o.vel), age_s, lp.near_track_reach_cap_m,
                                      pose.pos(), I.rp.radius_m, lp.near_track_m, reach)) {
+              reach.transient = true;
               obstacles.push_back(reach);
               kinds.push_back('r');
             }

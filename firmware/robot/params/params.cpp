@@ -37,6 +37,7 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.max_misses = v.integer("tracker.max_misses");
   p.max_coast_s = v.num("tracker.max_coast_s");
   p.velocity_measurement = v.flag("tracker.velocity_measurement");
+  p.max_speed_mps = v.num("tracker.max_speed_mps");
   return p;
 }
 
@@ -60,6 +61,8 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.uncertainty_max_m = v.num("planner.uncertainty_max_m");
   p.latency_compensation = v.flag("planner.latency_compensation");
   p.escape_inside_margin = v.flag("planner.escape_inside_margin");
+  p.transient_not_blocking = v.flag("planner.transient_not_blocking");
+  p.ignore_goal_footprint = v.flag("planner.ignore_goal_footprint");
   return p;
 }
 

@@ -233,6 +233,45 @@ TEST(Planner, DrivesAwayFromAnObstacleAlreadyInsideTheMargin) {
   EXPECT_EQ(stuck.cmd.v, 0.0);
 }
 
+// The robot inside a ring of static circles whose only gap (towards the goal) is closed by a
+// transient circle (a tracked obstacle's near-track circle or reachable set): waiting, not the final
+// "blocked" — unless the flag is off. A known surface in the gap still blocks.
+TEST(Planner, TransientCirclesDoNotDecideBlocked) {
+  std::vector<CircleObstacle> obs;
+  for (int i = 1; i < 16; ++i) obs.push_back({{std::cos(i * M_PI / 8), std::sin(i * M_PI / 8)}, 0.15, {}});
+  obs.push_back({{1.0, 0.0}, 0.3, {}, true});  // the gap at angle 0, closed by a transient circle
+  PlannerParams pp = planner();
+  pp.transient_not_blocking = true;
+  const PlanOutput wait = Planner(pp, robot()).plan({0, 0, 0}, {}, {4, 0}, obs);
+  EXPECT_EQ(wait.status, PlanStatus::kWaiting);
+  EXPECT_FALSE(wait.path.empty());
+  pp.transient_not_blocking = false;
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, {4, 0}, obs).status, PlanStatus::kBlocked);
+  pp.transient_not_blocking = true;
+  obs.back().transient = false;  // a surface
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, {4, 0}, obs).status, PlanStatus::kBlocked);
+}
+
+// Map cells (2.5 cm circles) of depth noise around the goal point: the global search ignores what
+// covers the goal itself (the robot drives on; the local planner keeps it clear of them), but a
+// ring around the goal still blocks.
+TEST(Planner, ObstaclesOnTheGoalPointDoNotBlockTheSearch) {
+  const Vec2 goal{3.0, 0.0};
+  std::vector<CircleObstacle> cells;
+  for (int i = 0; i < 8; ++i) cells.push_back({goal + Vec2{0.12 * std::cos(i * M_PI / 4), 0.12 * std::sin(i * M_PI / 4)}, 0.025, {}});
+  PlannerParams pp = planner();
+  pp.ignore_goal_footprint = true;
+  const PlanOutput go = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, cells);
+  EXPECT_EQ(go.status, PlanStatus::kMoving);
+  EXPECT_GT(go.cmd.v, 0.0);
+  pp.ignore_goal_footprint = false;
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, cells).status, PlanStatus::kBlocked);
+  pp.ignore_goal_footprint = true;
+  std::vector<CircleObstacle> ring;
+  for (int i = 0; i < 16; ++i) ring.push_back({goal + Vec2{0.8 * std::cos(i * M_PI / 8), 0.8 * std::sin(i * M_PI / 8)}, 0.15, {}});
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, ring).status, PlanStatus::kBlocked);
+}
+
 TEST(NavSuite, ReachesGoalsWithoutCollisionAndStopsWhenBlocked) {
 #ifdef FS_TEST_EMULATED
   const int n_free = 30, n_blocked = 10;  // under qemu (10-30x slower): a subset of the same seeds

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <set>
 
 #include "config.hpp"
 #include "fuzzystereo/robot/kalman.hpp"
@@ -95,6 +96,7 @@ TEST(Tracker, ConstantVelocityTargetsBeatRawMeasurements) {
   // 10 Hz frames, 5 cm position noise (stereo at a few metres), 100 seeded trajectories of 60 frames.
   TrackerParams tp;
   tp.accel_sigma_mps2 = 0.2;
+  tp.max_speed_mps = 1.0;  // the targets run at up to 0.85 m/s
   const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 100, 42);
   std::cout << "[ tracking ] position RMSE filter " << s.filt_pos_rmse << " m vs raw " << s.raw_pos_rmse
             << " m; velocity error after 10 frames: RMS " << s.vel_rmse_after10 << " m/s, p95 " << s.vel_p95_after10
@@ -111,6 +113,7 @@ TEST(Tracker, PositionOnlyVariantAlsoConverges) {
   TrackerParams tp;
   tp.accel_sigma_mps2 = 0.2;
   tp.velocity_measurement = false;
+  tp.max_speed_mps = 1.0;
   const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 50, 7);
   std::cout << "[ tracking ] position-only update: position RMSE " << s.filt_pos_rmse << " m, velocity RMS after 10 "
             << s.vel_rmse_after10 << " m/s\n";
@@ -192,10 +195,58 @@ TEST(Tracker, TwoTargetsKeepTheirIdentities) {
   for (const Track& tr : mt.tracks()) EXPECT_NEAR(std::abs(tr.vel().x), 0.3, 0.1);
 }
 
+// A gap wall of posts 0.3 m apart, seen one fragment per frame at 5 Hz (the detector splits the
+// wall differently every frame): with only the predicted-position gate (up to gate_max_m for a young
+// track) the fragments chain into one confirmed track "travelling" at 1.5 m/s; the speed gate keeps
+// each post a track of its own. A mover at 0.3 m/s whose measured half-width (and so its centre,
+// placed half the width behind the visible front) jumps between fragments stays one track.
+TEST(Tracker, SpeedGateStopsWallFragmentsChainingButKeepsAMover) {
+  TrackerParams tp;  // gate 0.5 m + 3 sigma, up to 2 m
+  tp.max_speed_mps = 0.5;
+  auto vis = [](Vec2) { return true; };
+  {
+    MultiTracker mt(tp);
+    double fastest_confirmed = 0;
+    for (int f = 0; f < 8; ++f) {
+      mt.step(s_to_ns(0.2 * f), {{{2.0, -1.0 + 0.3 * f}, 0.15, 0, 0.03}}, vis);
+      for (const Track& tr : mt.tracks())
+        if (tr.confirmed) fastest_confirmed = std::max(fastest_confirmed, norm(tr.vel()));
+    }
+    EXPECT_LT(fastest_confirmed, 0.2) << "wall fragments chained into a ghost mover";
+  }
+  {
+    MultiTracker mt(tp);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> n(0.0, 0.04);
+    std::uniform_real_distribution<double> half(0.08, 0.25);
+    std::set<int> ids;
+    for (int f = 0; f < 40; ++f) {
+      const double t = 0.2 * f;
+      const Vec2 truth{3.0, -1.5 + 0.3 * t};
+      const double r = half(rng);  // a fragment: the centre sits r behind the front at x = 2.75
+      mt.step(s_to_ns(t), {{{truth.x - 0.25 + r + n(rng), truth.y + n(rng)}, r, 0, 0.04}}, vis);
+      for (const Track& tr : mt.tracks()) ids.insert(tr.id);
+    }
+    EXPECT_EQ(ids.size(), 1u);
+    ASSERT_EQ(mt.tracks().size(), 1u);
+    EXPECT_NEAR(mt.tracks()[0].vel().y, 0.3, 0.1);
+  }
+  tp.max_speed_mps = 0.0;  // no speed gate (the default): the chain forms (the test can fail)
+  MultiTracker loose(tp);
+  double fastest = 0;
+  for (int f = 0; f < 8; ++f) {
+    loose.step(s_to_ns(0.2 * f), {{{2.0, -1.0 + 0.3 * f}, 0.15, 0, 0.03}}, vis);
+    for (const Track& tr : loose.tracks())
+      if (tr.confirmed) fastest = std::max(fastest, norm(tr.vel()));
+  }
+  EXPECT_GT(fastest, 1.0);
+}
+
 TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   const Config c = parse_config("", "default.toml");
   const TrackerParams t = tracker_params_from(c.values), d;
   EXPECT_DOUBLE_EQ(t.pos_sigma_m, d.pos_sigma_m);
+  EXPECT_DOUBLE_EQ(t.max_speed_mps, d.max_speed_mps);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
   EXPECT_EQ(t.max_misses, d.max_misses);
   const RobotParams r = robot_params_from(c.values), rd;

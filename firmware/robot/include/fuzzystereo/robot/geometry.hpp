@@ -34,6 +34,8 @@ struct CircleObstacle {
   Vec2 c;           // centre [m]
   double r = 0;     // radius [m]
   Vec2 vel;         // [m/s]; zero for static obstacles
+  bool transient = false;  // a place a tracked obstacle may be (near-track circle, reachable set),
+                           // not a known surface: never decides "blocked" (planner.hpp)
   Vec2 at(double t) const { return c + t * vel; }
 };
 

@@ -35,6 +35,7 @@ struct Track {
   std::int64_t first_meas_ns = 0;  // the measurement that started the track
   Vec2 first_meas_p;
   double last_meas_var = 0;     // its position variance [m^2]
+  double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool updated_this_frame = false;
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
