@@ -21,28 +21,35 @@ namespace fs {
 // Gaussian noise of std sigma, N * I has std 6 sigma (sum of squared weights = 36). Immerkaer takes
 // the mean of |N * I| over the image; edges and texture inflate that, so the median of |N * I| is
 // used instead: median |X| = 0.67449 * 6 sigma for X ~ N(0, 36 sigma^2). Exact integer histogram
-// of |N * I| in 0 .. 4080; interior pixels only. Returns sigma in grey levels (0 for images
-// smaller than 3 x 3).
+// of |N * I| in 0 .. 4080 over the interior pixels of every second row (y = 1, 3, 5, ...: a median
+// of >= 10^5 samples on a camera frame, at half the cost). Returns sigma in grey levels (0 for
+// images smaller than 3 x 3).
 double estimate_noise_sigma(const ImageU8& img) {
   const int w = img.width, h = img.height;
   if (w < 3 || h < 3) return 0.0;
-  std::vector<std::uint32_t> hist(4081, 0);
-  for (int y = 1; y < h - 1; ++y) {
+  constexpr std::size_t kBins = 4081;
+  // Four interleaved histograms: equal neighbouring values would otherwise make every increment
+  // wait for the previous one (store-to-load chain).
+  std::vector<std::uint32_t> hist(4 * kBins, 0);
+  std::vector<std::uint16_t> a(static_cast<std::size_t>(w));
+  std::uint64_t n = 0;
+  for (int y = 1; y < h - 1; y += 2) {
     const std::uint8_t* up = img.row(y - 1);
     const std::uint8_t* mid = img.row(y);
     const std::uint8_t* dn = img.row(y + 1);
-    for (int x = 1; x < w - 1; ++x) {
+    for (int x = 1; x < w - 1; ++x) {  // vectorises: no dependency between pixels
       const int v = (up[x - 1] + up[x + 1] + dn[x - 1] + dn[x + 1]) - 2 * (up[x] + dn[x] + mid[x - 1] + mid[x + 1]) +
                     4 * mid[x];
-      ++hist[static_cast<std::size_t>(v < 0 ? -v : v)];
+      a[std::size_t(x)] = static_cast<std::uint16_t>(v < 0 ? -v : v);
     }
+    for (int x = 1; x < w - 1; ++x) ++hist[std::size_t(x & 3) * kBins + a[std::size_t(x)]];
+    n += std::uint64_t(w - 2);
   }
-  const std::uint64_t n = std::uint64_t(w - 2) * std::uint64_t(h - 2);
   // Median: the smallest m with 2 * #(<= m) >= n.
   std::uint64_t c = 0;
   std::size_t m = 0;
-  for (; m < hist.size(); ++m) {
-    c += hist[m];
+  for (; m < kBins; ++m) {
+    c += std::uint64_t(hist[m]) + hist[kBins + m] + hist[2 * kBins + m] + hist[3 * kBins + m];
     if (2 * c >= n) break;
   }
   return static_cast<double>(m) / (6.0 * 0.67449);
@@ -75,9 +82,12 @@ ImageU8 binomial_smooth(const ImageU8& img) {
 // 100 * #(<= v) >= p * N, exact integers); at least 1.
 int grey_spread(const ImageU8& img) {
   if (img.data.empty()) return 1;
+  std::array<std::uint32_t, 4 * 256> h4{};  // four interleaved histograms (see estimate_noise_sigma)
+  const std::size_t N = img.data.size();
+  for (std::size_t i = 0; i < N; ++i) ++h4[(i & 3) * 256 + img.data[i]];
   std::array<std::uint64_t, 256> h{};
-  for (const std::uint8_t v : img.data) ++h[v];
-  const std::uint64_t n = img.data.size();
+  for (std::size_t v = 0; v < 256; ++v) h[v] = std::uint64_t(h4[v]) + h4[256 + v] + h4[512 + v] + h4[768 + v];
+  const std::uint64_t n = N;
   auto quantile = [&](std::uint64_t pct) {
     std::uint64_t c = 0;
     int v = 0;

@@ -85,7 +85,8 @@ def estimate_noise_sigma(img: np.ndarray) -> float:
     """Noise std [grey levels] (not in the paper; docs/algorithm.md 2c), twin of the firmware's
     ``estimate_noise_sigma``: median of |N * I| over the interior pixels, N = [1 -2 1; -2 4 -2;
     1 -2 1] (Immerkaer 1996, median instead of mean so edges and texture do not count), divided by
-    6 * 0.67449 (median |X| of X ~ N(0, 36 sigma^2)). Exact: integer convolution, lower median."""
+    6 * 0.67449 (median |X| of X ~ N(0, 36 sigma^2)), over the interior pixels of rows 1, 3, 5, ...
+    Exact: integer convolution, lower median."""
     if img.ndim != 2 or img.shape[0] < 3 or img.shape[1] < 3:
         return 0.0
     f = img.astype(np.int32)
@@ -95,7 +96,7 @@ def estimate_noise_sigma(img: np.ndarray) -> float:
     for j in range(3):
         for i in range(3):
             v += k[j, i] * f[j : j + h - 2, i : i + w - 2]
-    a = np.sort(np.abs(v).ravel())
+    a = np.sort(np.abs(v[::2]).ravel())  # rows y = 1, 3, 5, ... of the image
     n = a.size
     median = int(a[(n + 1) // 2 - 1])  # the smallest m with 2 * #(<= m) >= n
     return median / (6.0 * 0.67449)
