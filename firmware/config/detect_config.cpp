@@ -75,6 +75,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
+  p.merge_group_max_rel = v.num("detect.merge_group_max_rel");
+  p.merge_attach = v.flag("detect.merge_attach");
   p.min_height_m = v.num("detect.min_height_m");
   p.near_m = v.num("detect.near_m");
   p.far_m = v.num("detect.far_m");

@@ -397,9 +397,14 @@ def _group_stats(comp: np.ndarray, disp: np.ndarray, roots: np.ndarray):
     return g, box, med, cnt
 
 
-def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float) -> np.ndarray:
+def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float, group_rel: float = 0.0,
+                    attach: bool = False) -> np.ndarray:
     """Component -> group root (smallest label): boxes grown by `gap` overlap and the medians differ
-    by <= rel of the larger (single linkage; the firmware uses the lower median of Q4 values)."""
+    by <= rel of the larger (the firmware uses the lower median of Q4 values). group_rel <= 0: single
+    linkage. group_rel > 0 (session 8): complete linkage, closest pairs first, two groups join only when all
+    their members' medians span <= group_rel of the largest; then, with `attach`, each group joins the
+    touching larger group (more pixels) whose group median is nearest within rel (no chains: a group that
+    joins is no target)."""
     joins = _Joins(range(n + 1))
     if gap < 0 or rel <= 0:
         return np.arange(n + 1)
@@ -409,17 +414,55 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
         if len(xs):
             box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
             med[c] = float(np.median(disp[ys, xs]))
+
+    def touch(a, b):
+        return not (b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap)
+
     cs = sorted(box)
+    pairs = []
     for i, c1 in enumerate(cs):
-        a = box[c1]
         for c2 in cs[i + 1:]:
-            b = box[c2]
-            if b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap:
+            if not touch(box[c1], box[c2]):
                 continue
             if abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
                 continue
-            joins.join(c1, c2)
-    return np.array([joins.find(c) for c in range(n + 1)])
+            if group_rel <= 0:
+                joins.join(c1, c2)
+            else:
+                pairs.append((abs(med[c1] - med[c2]) / max(med[c1], med[c2], 1e-9), c1, c2))
+    if group_rel <= 0:
+        return np.array([joins.find(c) for c in range(n + 1)])
+    lo = dict(med)
+    hi = dict(med)
+    for _, c1, c2 in sorted(pairs):
+        r1, r2 = joins.find(c1), joins.find(c2)
+        if r1 == r2:
+            continue
+        glo, ghi = min(lo[r1], lo[r2]), max(hi[r1], hi[r2])
+        if ghi - glo > group_rel * ghi + 1e-9:
+            continue
+        joins.join(r1, r2)
+        r = joins.find(r1)
+        lo[r], hi[r] = glo, ghi
+    roots = np.array([joins.find(c) for c in range(n + 1)])
+    if not attach:
+        return roots
+    _, gbox, gmed, gcnt = _group_stats(comp, disp, roots)
+    target = {}
+    for g1 in gbox:
+        best = None
+        for g2 in gbox:
+            if g2 == g1 or gcnt[g2] <= gcnt[g1] or not touch(gbox[g1], gbox[g2]):
+                continue
+            if abs(gmed[g1] - gmed[g2]) > rel * max(gmed[g1], gmed[g2]) + 1e-9:
+                continue
+            key = (abs(gmed[g2] - gmed[g1]), -gcnt[g2], g2)
+            if best is None or key < best[0]:
+                best = (key, g2)
+        if best is not None:
+            target[g1] = best[1]
+    move = {g: t for g, t in target.items() if t not in target}
+    return np.array([move.get(int(r), int(r)) for r in roots])
 
 
 def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: float) -> float | None:
@@ -716,7 +759,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     comp, n = components(kept, disp, p.cc_max_step_px, float(p.cc_max_rel_step), float(p.cc_min_step_px))
     comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
                             int(p.split_rounds))
-    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
+    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
+                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)))
     roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
                         int(p.merge_edge_columns))
     roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
