@@ -68,6 +68,7 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.trim_col_top_share = v.num("detect.trim_col_top_share");
   p.road_slope_prior_rel = v.num("detect.road_slope_prior_rel");
   p.below_road_drop_share = v.num("detect.below_road_drop_share");
+  p.seen_through_drop_share = v.num("detect.seen_through_drop_share");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");

@@ -3,6 +3,8 @@
 // span limit refuses still joins the obstacle whose median it is near.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "fuzzystereo/detect.hpp"
 
 namespace fs {
@@ -84,6 +86,65 @@ TEST(DetectLinkage, FragmentRefusedBySpanAttachesToNearestGroup) {
   EXPECT_EQ(o[0].x1, 49);
   p.merge_group_max_rel = 0.0;  // single linkage joins all three directly
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+}
+
+}  // namespace
+}  // namespace fs
+
+namespace fs {
+namespace {
+
+Obstacle box_obstacle(int id, int x0, int y0, int x1, int y1, int q4, ImageI32& labels) {
+  Obstacle o;
+  o.id = id, o.x0 = x0, o.y0 = y0, o.x1 = x1, o.y1 = y1, o.disparity_q4 = q4;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      if (labels.at(x, y) == 0) labels.at(x, y) = id + 1, ++o.pixel_count;
+  return o;
+}
+
+TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
+  // H: a face at Q4 320, rows 10..49, columns 10..49, with a hole (rows 20..29, columns 20..35) where the
+  // matcher measured a blob F at Q4 240 (25 % farther). G at 240 beside H (columns 60..79): not enclosed.
+  ImageI32 labels(100, 60, 0);
+  std::vector<Obstacle> o;
+  o.push_back(box_obstacle(1, 20, 20, 35, 29, 240, labels));  // F first so that H's rectangle leaves its hole
+  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
+  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
+  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  // ids: 0 = H, 1 = F, 2 = G; labels hold id + 1.
+  DetectParams p;
+  p.seen_through_drop_share = 0.0;
+  auto off = o;
+  ImageI32 l0 = labels;
+  detect::drop_seen_through(off, l0, p);
+  EXPECT_EQ(off.size(), 3u);
+  p.seen_through_drop_share = 0.5;
+  auto on = o;
+  ImageI32 l1 = labels;
+  detect::drop_seen_through(on, l1, p);
+  ASSERT_EQ(on.size(), 2u);
+  EXPECT_EQ(on[0].disparity_q4, 320);
+  EXPECT_EQ(on[1].disparity_q4, 240);
+  EXPECT_EQ(on[1].x0, 60);  // G kept, renumbered id 1
+  EXPECT_EQ(on[1].id, 1);
+  EXPECT_EQ(l1.at(25, 25), 0);   // F's pixels left the labels
+  EXPECT_EQ(l1.at(70, 30), 2);   // G's pixels renumbered
+  EXPECT_EQ(l1.at(12, 12), 1);
+  // Within fragment merging's tolerance (F at 300 vs 320: 6.7 % < 10 %) F is not "farther": kept.
+  auto near = o;
+  near[1].disparity_q4 = 300;
+  ImageI32 l2 = labels;
+  detect::drop_seen_through(near, l2, p);
+  EXPECT_EQ(near.size(), 3u);
+  // F sticking out below H's face in its columns (H only above): kept.
+  ImageI32 l3(100, 60, 0);
+  std::vector<Obstacle> q;
+  q.push_back(box_obstacle(1, 20, 40, 35, 55, 240, l3));
+  q.push_back(box_obstacle(0, 10, 10, 49, 39, 320, l3));
+  std::sort(q.begin(), q.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  detect::drop_seen_through(q, l3, p);
+  EXPECT_EQ(q.size(), 2u);
 }
 
 }  // namespace

@@ -110,6 +110,8 @@ struct DetectParams {
   // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
   double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
                                    // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
+  double seen_through_drop_share = 0.5;  // obstacles with at least this share of their pixels in columns where one
+                                   // nearer obstacle lies above and below them are dropped (session 8; 0 = off)
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
   int min_area_px = 200;           // smaller components are dropped
@@ -294,6 +296,12 @@ void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, con
 // below_road_drop_share <= 0 or no line: unchanged.
 void drop_below_road(std::vector<Obstacle>& obstacles, ImageI32& labels, const std::vector<std::int32_t>& line_q4,
                      const DetectParams& p);
+
+// Seen through (docs/detection.md "(e) Seen through", session 8): an obstacle F is dropped when, for one nearer
+// obstacle H (median Q4 disparity > F's * (1 + merge_max_rel_disparity)), the columns where H has pixels
+// above F's highest and below F's lowest pixel of that column hold >= seen_through_drop_share of F's pixels
+// (labels == id + 1); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
+void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
 
 }  // namespace detect
 

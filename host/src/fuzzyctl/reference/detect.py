@@ -725,6 +725,47 @@ def drop_below_road(obstacles: list, ol: np.ndarray, a: float, b: float, horizon
     return kept
 
 
+def drop_seen_through(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
+    """Seen through (docs/detection.md "(e) Seen through", session 8): an obstacle F is dropped when, for one
+    nearer obstacle H (disparity > F's * (1 + merge_max_rel_disparity)), the columns where H has pixels above
+    F's highest and below F's lowest pixel there hold >= seen_through_drop_share of F's pixels; the rest are
+    renumbered (ids, ol)."""
+    share = float(getattr(p, "seen_through_drop_share", 0.0))
+    if share <= 0 or len(obstacles) < 2:
+        return obstacles
+    w = ol.shape[1]
+    ext = {}
+    for o in obstacles:
+        ys, xs = np.nonzero(ol == o.id + 1)
+        top = np.full(w, np.inf)
+        bot = np.full(w, -np.inf)
+        cnt = np.bincount(xs, minlength=w)
+        np.minimum.at(top, xs, ys)
+        np.maximum.at(bot, xs, ys)
+        ext[o.id] = (top, bot, cnt)
+    drop = set()
+    for f in obstacles:
+        tf, bf, cf = ext[f.id]
+        for g in obstacles:
+            if g.id == f.id or g.disparity_px <= f.disparity_px * (1.0 + p.merge_max_rel_disparity) + 1e-9:
+                continue
+            tg, bg, cg = ext[g.id]
+            enclosed = (cf > 0) & (cg > 0) & (tg < tf) & (bg > bf)
+            if cf[enclosed].sum() >= share * cf.sum() and cf.sum() > 0:
+                drop.add(f.id)
+                break
+    kept = []
+    remap = np.zeros(len(obstacles) + 1, np.int32)
+    for o in obstacles:
+        if o.id in drop:
+            continue
+        kept.append(o)
+        remap[o.id + 1] = len(kept)
+        o.id = len(kept) - 1
+    ol[:] = remap[ol]
+    return kept
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
@@ -798,6 +839,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         out.append(o)
     if found:
         out = drop_below_road(out, ol, a, b, horizon, p)  # docs/detection.md "(e) Below the road"
+    out = drop_seen_through(out, ol, p)  # docs/detection.md "(e) Seen through"
     trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
     if found:
         extend_to_ground(out, a, b, horizon, h, p)
