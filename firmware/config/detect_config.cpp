@@ -40,6 +40,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.sky_limit = v.str("detect.sky_limit") == "fraction" ? SkyLimit::Fraction : SkyLimit::Horizon;
   p.sky_upper_fraction = v.num("detect.sky_upper_fraction");
   p.sky_max_disparity_px = v.num("detect.sky_max_disparity_px");
+  p.sky_max_texture = v.num("detect.sky_max_texture");
+  p.sky_texture_radius = v.integer("detect.sky_texture_radius");
   p.sky_ranges = {range_from(v, "blue"), range_from(v, "grey"), range_from(v, "sunset")};
   p.kmeans_k = v.integer("detect.kmeans_k");
   p.kmeans_max_iterations = v.integer("detect.kmeans_max_iterations");

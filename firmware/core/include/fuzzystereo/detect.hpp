@@ -64,6 +64,9 @@ struct DetectParams {
   double sky_upper_fraction = 0.5;     // rows above this fraction of the height (Fraction, or fallback)
   std::array<HsvRange, 3> sky_ranges{};  // blue sky, overcast/bright grey, sunset (docs/detection.md)
   double sky_max_disparity_px = 0.0;   // >0: a pixel with a valid disparity above this is never sky
+  double sky_max_texture = 6.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
+                                     // sky (session 8; grey levels 0..255)
+  int sky_texture_radius = 2;        // ... r [px]
   // ---- k-means (eq. 22-23) ----
   int kmeans_k = 6;
   int kmeans_max_iterations = 30;
@@ -223,6 +226,11 @@ Hsv rgb_to_hsv(Rgb8 c);
 bool in_range(const Hsv& c, const HsvRange& r);
 // 1 for rows < rows_limit whose colour lies in an enabled range (and, when
 // p.sky_max_disparity_px > 0, whose disparity is invalid or not above it).
+// 1 for rows < rows_limit where every pixel of the (2r+1)^2 window (within the image and those rows) has a
+// grey-level (luma) standard deviation over its own (2r+1)^2 window (clipped at the border) above max_std:
+// the std test, then an erosion by the same window (docs/detection.md "(b) Texture"); all 0 when
+// max_std <= 0 or radius < 1.
+ImageU8 textured_mask(const ImageRgb8& rgb, int rows_limit, int radius, double max_std);
 ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows_limit, const DetectParams& p);
 
 struct KMeansResult {

@@ -226,6 +226,27 @@ def rgb_to_hsv(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return h, s, v
 
 
+def textured_mask(rgb: np.ndarray, rows: int, radius: int, max_std: float) -> np.ndarray:
+    """Texture (docs/detection.md "(b) Texture", session 8): grey-level (integer luma) standard deviation over the
+    (2r+1)^2 window clipped at the border > max_std, then eroded by the same window within rows < rows."""
+    hh, ww = rgb.shape[:2]
+    out = np.zeros((hh, ww), bool)
+    rows = int(np.clip(rows, 0, hh))
+    if max_std <= 0 or radius < 1 or rows == 0:
+        return out
+    r = rgb.astype(np.int64)
+    g = ((77 * r[..., 0] + 150 * r[..., 1] + 29 * r[..., 2] + 128) >> 8).astype(np.float64)
+    k = (2 * radius + 1, 2 * radius + 1)
+    box = lambda a: cv2.boxFilter(a, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)  # noqa: E731
+    n = box(np.ones_like(g))
+    mean = box(g) / n
+    var = box(g * g) / n - mean * mean
+    tex = (var > max_std * max_std)[:rows].astype(np.uint8)
+    er = cv2.erode(tex, np.ones(k, np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=1)
+    out[:rows] = er > 0
+    return out
+
+
 def sky_mask(rgb: np.ndarray, disp: np.ndarray, rows: int, p: DetectParams) -> np.ndarray:
     h, s, v = rgb_to_hsv(rgb)
     m = np.zeros(h.shape, bool)
@@ -239,6 +260,7 @@ def sky_mask(rgb: np.ndarray, disp: np.ndarray, rows: int, p: DetectParams) -> n
     if p.sky_max_disparity_px > 0:
         with np.errstate(invalid="ignore"):
             m &= ~(np.isfinite(disp) & (disp > p.sky_max_disparity_px))
+    m &= ~textured_mask(rgb, rows, int(getattr(p, "sky_texture_radius", 2)), float(getattr(p, "sky_max_texture", 0.0)))
     m[max(0, rows):] = False
     return m.astype(np.uint8)
 
