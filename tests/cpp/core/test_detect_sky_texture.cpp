@@ -6,41 +6,11 @@
 #include <cstdint>
 #include <random>
 
+#include "detect_reference.hpp"
 #include "fuzzystereo/detect.hpp"
 
 namespace fs {
 namespace {
-
-// Direct reference: per pixel the (2r+1)^2 window clipped at the border, n*S2 - S1^2 > (n*t)^2, then the
-// erosion (every in-range window pixel textured).
-ImageU8 textured_reference(const ImageRgb8& rgb, int rows, int r, double t) {
-  const int w = rgb.width, h = rgb.height;
-  auto luma = [&](int x, int y) {
-    const Rgb8 c = rgb.at(x, y);
-    return std::int64_t((77 * c.r + 150 * c.g + 29 * c.b + 128) >> 8);
-  };
-  ImageU8 tex(w, h, 0), out(w, h, 0);
-  for (int y = 0; y < rows; ++y)
-    for (int x = 0; x < w; ++x) {
-      std::int64_t n = 0, s1 = 0, s2 = 0;
-      for (int yy = y - r; yy <= y + r; ++yy)
-        for (int xx = x - r; xx <= x + r; ++xx) {
-          if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-          const std::int64_t g = luma(xx, yy);
-          ++n, s1 += g, s2 += g * g;
-        }
-      tex.at(x, y) = std::uint8_t(double(n * s2 - s1 * s1) > t * t * double(n) * double(n));
-    }
-  for (int y = 0; y < rows; ++y)
-    for (int x = 0; x < w; ++x) {
-      bool all = true;
-      for (int yy = y - r; yy <= y + r; ++yy)
-        for (int xx = x - r; xx <= x + r; ++xx)
-          if (xx >= 0 && yy >= 0 && xx < w && yy < rows && !tex.at(xx, yy)) all = false;
-      out.at(x, y) = std::uint8_t(all);
-    }
-  return out;
-}
 
 TEST(DetectSkyTexture, FastMatchesReferenceOnRandomImage) {
   std::mt19937 rng(7);
@@ -52,7 +22,7 @@ TEST(DetectSkyTexture, FastMatchesReferenceOnRandomImage) {
   for (int r : {1, 2, 3})
     for (double t : {2.0, 6.0, 15.0})
       for (int rows : {23, 11, 0}) {
-        const ImageU8 a = detect::textured_mask(img, rows, r, t), b = textured_reference(img, rows, r, t);
+        const ImageU8 a = detect::textured_mask(img, rows, r, t), b = ref::textured_mask(img, rows, r, t);
         ASSERT_EQ(a.data, b.data) << "r " << r << " t " << t << " rows " << rows;
       }
 }
