@@ -82,8 +82,9 @@ struct DetectParams {
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
-  double merge_group_max_rel = 0.12;  // complete linkage: a merged group's member medians span <= this share of the
-                                   // largest (session 8; 0 = single linkage, no group limit)
+  double merge_group_max_rel = 0.0;   // complete linkage: a merged group's member medians span <= this share of the
+                                   // largest (session 8; 0 = single linkage, no group limit: the default,
+                                   // see docs/results-detection.md "Session 8" for the trade-off)
   bool merge_attach = true;        // with complete linkage: each group then joins the touching larger group of
                                    // nearest median within merge_max_rel_disparity (one step, no chains)
   int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
