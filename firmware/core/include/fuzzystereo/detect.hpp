@@ -64,8 +64,9 @@ struct DetectParams {
   double sky_upper_fraction = 0.5;     // rows above this fraction of the height (Fraction, or fallback)
   std::array<HsvRange, 3> sky_ranges{};  // blue sky, overcast/bright grey, sunset (docs/detection.md)
   double sky_max_disparity_px = 0.0;   // >0: a pixel with a valid disparity above this is never sky
-  double sky_max_texture = 6.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
-                                     // sky (session 8; grey levels 0..255)
+  double sky_max_texture = 0.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
+                                     // sky (session 8; grey levels 0..255; 6 measured, off by default: it
+                                     // caused closed-loop collisions, docs/results-detection.md "Session 8")
   int sky_texture_radius = 2;        // ... r [px]
   // ---- k-means (eq. 22-23) ----
   int kmeans_k = 6;
