@@ -733,12 +733,23 @@ def drop_below_road(obstacles: list, ol: np.ndarray, a: float, b: float, horizon
     v = np.arange(h, dtype=np.float64)
     line = a * v + b
     band = p.road_tolerance_px + p.road_tolerance_rel * np.maximum(line, 0.0)
-    kept = []
-    remap = np.zeros(len(obstacles) + 1, np.int32)
-    for o in obstacles:
+
+    def keep(o) -> bool:
         ys, _ = np.nonzero(ol == o.id + 1)
         below = (ys >= horizon) & (line[ys] - o.disparity_px > band[ys] + 1e-9)
-        if len(ys) and below.sum() >= p.below_road_drop_share * len(ys):
+        return not (len(ys) and below.sum() >= p.below_road_drop_share * len(ys))
+
+    return _keep_renumbered(obstacles, ol, keep)
+
+
+def _keep_renumbered(obstacles: list, ol: np.ndarray, keep) -> list:
+    """The obstacles for which keep(o) holds (decided on the labels as they are), renumbered 0..n-1 in
+    order, with the label image ol (0 = none, id + 1) renumbered alike."""
+    decided = [bool(keep(o)) for o in obstacles]
+    kept = []
+    remap = np.zeros(len(obstacles) + 1, np.int32)
+    for o, k in zip(obstacles, decided):
+        if not k:
             continue
         kept.append(o)
         remap[o.id + 1] = len(kept)
@@ -776,16 +787,7 @@ def drop_seen_through(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
             if cf[enclosed].sum() >= share * cf.sum() and cf.sum() > 0:
                 drop.add(f.id)
                 break
-    kept = []
-    remap = np.zeros(len(obstacles) + 1, np.int32)
-    for o in obstacles:
-        if o.id in drop:
-            continue
-        kept.append(o)
-        remap[o.id + 1] = len(kept)
-        o.id = len(kept) - 1
-    ol[:] = remap[ol]
-    return kept
+    return _keep_renumbered(obstacles, ol, lambda o: o.id not in drop)
 
 
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
