@@ -89,7 +89,7 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas;
   int moving_min_hits, static_track_cells;
   bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot;
 };
@@ -109,6 +109,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
   p.reach_travel_rate = v.flag("loop.reach_travel_rate");
+  p.reach_travel_noise_sigmas = v.num("loop.reach_travel_noise_sigmas");
   p.reach_lost_tracks = v.flag("loop.reach_lost_tracks");
   p.reach_holding_robot = v.flag("loop.reach_holding_robot");
   return p;
@@ -590,7 +591,8 @@ LoopResult RobotLoop::run() {
             // may then only move away from where it was last seen; seed 11, scenario 92).
             CircleObstacle reach;
             const double speed = robot::reach_speed(robot::norm(o.vel), tr.first_meas_p, tr.last_meas_p,
-                                                    robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate);
+                                                    robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
+                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;
@@ -618,7 +620,8 @@ LoopResult RobotLoop::run() {
           if (supported) continue;
           CircleObstacle reach;
           const double speed = robot::reach_speed(robot::norm(tr.vel()), tr.first_meas_p, tr.last_meas_p,
-                                                  robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate);
+                                                  robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
+                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
           if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                    I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot)) {
             reach.transient = true;

@@ -357,9 +357,10 @@ bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap
   return true;
 }
 
-double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate) {
+double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate,
+                   double noise_m) {
   if (!use_travel_rate || !(life_s > 0.0)) return filtered_speed;
-  return std::min(filtered_speed, norm(last_p - first_p) / life_s);
+  return std::min(filtered_speed, std::max(0.0, norm(last_p - first_p) - std::max(0.0, noise_m)) / life_s);
 }
 
 double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal, double radius,

@@ -79,6 +79,11 @@ TEST(Planner, ReachSpeedIsAtMostTheTravelRate) {
   // Never faster than the filter; one measurement (no life): the filtered speed.
   EXPECT_NEAR(reach_speed(0.1, {0.0, 0.0}, {1.0, 0.0}, 1.0, true), 0.1, 1e-12);
   EXPECT_NEAR(reach_speed(0.2, {0.0, 0.0}, {0.0, 0.0}, 0.0, true), 0.2, 1e-12);
+  // Noise subtracted: a young static track, 0.15 m of jitter in 0.8 s at 3 m (std 0.14 m, 2 std).
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {2.15, 0.0}, 0.8, true, 0.28), 0.0, 1e-12);
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {2.15, 0.0}, 0.8, true, 0.0), 0.15 / 0.8, 1e-12);
+  // ...while a mover that went 1 m in 4 s keeps most of its rate.
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {3.0, 0.0}, 4.0, true, 0.28), 0.72 / 4.0, 1e-12);
 }
 
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {
