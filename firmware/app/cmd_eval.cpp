@@ -156,10 +156,12 @@ void run_eval(const EvalOptions& o) {
     MatchResult result;
     const double fs_ms = time_ms([&] { result = matcher->match(core_left, core_right); });
     record(kFuzzy, disp_q4_to_float(result.disp_final), fs_ms);
-    // The radiometric decision of docs/algorithm.md 2b: the grey-level shift it read and the
-    // factor it applied to the right gradients (x1.00 = none).
-    std::snprintf(buf, sizeof buf, " (grey shift %.1f, gradient gain x%.2f)", result.grey_quantile_shift,
-                  result.gradient_gain_q16 / 65536.0);
+    // The radiometric decisions of docs/algorithm.md 2b and 2c: the grey-level shift read and the
+    // factor applied to the right gradients (x1.00 = none); the noise estimates, the excess and
+    // whether the pair was smoothed.
+    std::snprintf(buf, sizeof buf, " (grey shift %.1f, gradient gain x%.2f, noise %.2f/%.2f excess %.2f%s)",
+                  result.grey_quantile_shift, result.gradient_gain_q16 / 65536.0, result.noise_sigma_left,
+                  result.noise_sigma_right, result.noise_excess, result.noise_equalised ? " smoothed" : "");
     line += buf;
 
     // OpenCV baselines

@@ -56,6 +56,13 @@ void write_match_dump(const std::string& dir, const std::string& left_name, cons
   nlohmann::json t;
   for (int i = 0; i < static_cast<int>(Stage::Count); ++i) t[stage_name(Stage(i))] = r.timings.ms[std::size_t(i)];
   meta["timings_ms"] = t;
+  // The radiometric decisions (docs/algorithm.md 2b, 2c).
+  meta["radiometric"] = {{"grey_quantile_shift", r.grey_quantile_shift},
+                         {"gradient_gain", r.gradient_gain_q16 / 65536.0},
+                         {"noise_sigma_left", r.noise_sigma_left},
+                         {"noise_sigma_right", r.noise_sigma_right},
+                         {"noise_excess", r.noise_excess},
+                         {"noise_equalised", r.noise_equalised}};
   std::ofstream f(dir + "/meta.json");
   f << meta.dump(2) << "\n";
   if (!f) throw UserError("cannot write '" + dir + "/meta.json'");

@@ -162,6 +162,9 @@ MatcherParams to_params(const Values& v) {
   p.cost.gradient_gain_deadband = v.num("cost.gradient_gain_deadband");
   p.cost.gradient_gain_trigger = v.str("cost.gradient_gain_trigger") == "gradient" ? GainTrigger::Gradient : GainTrigger::Grey;
   p.cost.gradient_gain_grey_shift = v.num("cost.gradient_gain_grey_shift");
+  p.cost.noise_excess = v.num("cost.noise_excess");
+  p.cost.noise_image_passes = i("cost.noise_image_passes");
+  p.cost.noise_gradient_passes = i("cost.noise_gradient_passes");
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.lr.max_diff = i("lr_check.max_diff");
@@ -259,7 +262,10 @@ std::string config_to_toml(const MatcherParams& p) {
     << (p.cost.gradient_gain_deadband == std::floor(p.cost.gradient_gain_deadband) ? ".0" : "")
     << "\ngradient_gain_trigger = \"" << (p.cost.gradient_gain_trigger == GainTrigger::Gradient ? "gradient" : "grey") << "\""
     << "\ngradient_gain_grey_shift = " << fmt_num(p.cost.gradient_gain_grey_shift)
-    << (p.cost.gradient_gain_grey_shift == std::floor(p.cost.gradient_gain_grey_shift) ? ".0" : "") << "\n\n"
+    << (p.cost.gradient_gain_grey_shift == std::floor(p.cost.gradient_gain_grey_shift) ? ".0" : "")
+    << "\nnoise_excess = " << fmt_num(p.cost.noise_excess) << (p.cost.noise_excess == std::floor(p.cost.noise_excess) ? ".0" : "")
+    << "\nnoise_image_passes = " << p.cost.noise_image_passes
+    << "\nnoise_gradient_passes = " << p.cost.noise_gradient_passes << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window

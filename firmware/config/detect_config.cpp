@@ -40,6 +40,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.sky_limit = v.str("detect.sky_limit") == "fraction" ? SkyLimit::Fraction : SkyLimit::Horizon;
   p.sky_upper_fraction = v.num("detect.sky_upper_fraction");
   p.sky_max_disparity_px = v.num("detect.sky_max_disparity_px");
+  p.sky_max_texture = v.num("detect.sky_max_texture");
+  p.sky_texture_radius = v.integer("detect.sky_texture_radius");
   p.sky_ranges = {range_from(v, "blue"), range_from(v, "grey"), range_from(v, "sunset")};
   p.kmeans_k = v.integer("detect.kmeans_k");
   p.kmeans_max_iterations = v.integer("detect.kmeans_max_iterations");
@@ -68,6 +70,7 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.trim_col_top_share = v.num("detect.trim_col_top_share");
   p.road_slope_prior_rel = v.num("detect.road_slope_prior_rel");
   p.below_road_drop_share = v.num("detect.below_road_drop_share");
+  p.seen_through_drop_share = v.num("detect.seen_through_drop_share");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");
@@ -75,6 +78,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
+  p.merge_group_max_rel = v.num("detect.merge_group_max_rel");
+  p.merge_attach = v.flag("detect.merge_attach");
   p.min_height_m = v.num("detect.min_height_m");
   p.near_m = v.num("detect.near_m");
   p.far_m = v.num("detect.far_m");

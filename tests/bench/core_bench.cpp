@@ -79,6 +79,14 @@ void BM_Gradient(benchmark::State& st) {
 }
 BENCHMARK(BM_Gradient)->Unit(benchmark::kMillisecond);
 
+// The noise equalisation detector (docs/algorithm.md 2c) runs on every frame: both images.
+void BM_NoiseDetector(benchmark::State& st) {
+  for (auto _ : st)
+    benchmark::DoNotOptimize(fs::noise_excess(fs::estimate_noise_sigma(pair().left), fs::estimate_noise_sigma(pair().right),
+                                              fs::grey_spread(pair().left), fs::grey_spread(pair().right)));
+}
+BENCHMARK(BM_NoiseDetector)->Unit(benchmark::kMillisecond);
+
 void BM_Slic(benchmark::State& st) {
   const auto p = params();
   for (auto _ : st) benchmark::DoNotOptimize(fs::slic_segment(pair().left, p.seg));

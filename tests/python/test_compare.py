@@ -208,6 +208,27 @@ def test_fault_injection_is_caught(firmware_bin, pair_files, tmp_path, capsys):
 
 
 @pytest.mark.firmware
+def test_firmware_noise_equalisation_matches_the_reference(firmware_bin, tmp_path, capsys):
+    # docs/algorithm.md 2c: a smooth scene whose right view carries sensor noise (std 6) makes
+    # both sides smooth the pair; the dump records the decision and compare stays within tolerance.
+    y, x = np.mgrid[0:48, 0:80]
+    scene = 60.0 + 1.2 * x + 0.4 * y + 40.0 * (np.sin(x / 3.0) * np.sin(y / 4.0) > 0.3)
+    left = np.clip(np.rint(scene), 0, 255).astype(np.uint8)
+    right = np.roll(left, -4, axis=1)
+    right = np.clip(np.rint(right + np.random.default_rng(5).normal(0, 6.0, right.shape)), 0, 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "l.png"), left)
+    cv2.imwrite(str(tmp_path / "r.png"), right)
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n")
+    run = _firmware_dump(firmware_bin, tmp_path / "l.png", tmp_path / "r.png", tmp_path / "fw", "--config", str(cfg))
+    meta = dm.read_meta(dm.find_dump_dir(run) / "meta.json")
+    assert meta["radiometric"]["noise_equalised"] is True
+    rc = main(["compare", str(run)])
+    out = capsys.readouterr()
+    assert rc == 0, out.out + out.err
+
+
+@pytest.mark.firmware
 @pytest.mark.datasets
 @pytest.mark.slow
 def test_firmware_tsukuba_within_tolerance(firmware_bin, datasets_root, tmp_path, capsys):

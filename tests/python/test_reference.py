@@ -67,6 +67,50 @@ def test_grey_quantile_shift_matches_sorting_and_detects_a_gain():
     assert image.grey_quantile_shift(img, dim) > 13.0  # the default gradient_gain_grey_shift
 
 
+# ---- noise equalisation (docs/algorithm.md 2c) ---------------------------------------------------
+
+
+def _smooth_scene(h: int, w: int, sigma: float, seed: int) -> np.ndarray:
+    """A ramp with a bright disc (edges, no fine texture) plus white noise of std sigma."""
+    y, x = np.mgrid[0:h, 0:w]
+    v = 60.0 + 100.0 * x / w + 20.0 * y / h + 50.0 * (((x - w // 2) ** 2 + (y - h // 2) ** 2) < (h // 3) ** 2)
+    v = v + np.random.default_rng(seed).normal(0.0, sigma, v.shape) if sigma > 0 else v
+    return np.clip(np.rint(v), 0, 255).astype(np.uint8)
+
+
+def test_binomial_smooth_is_the_3x3_binomial_with_replicated_border():
+    img = np.random.default_rng(8).integers(0, 256, (13, 29)).astype(np.uint8)
+    p = np.pad(img.astype(np.int64), 1, mode="edge")
+    k = np.outer([1, 2, 1], [1, 2, 1])
+    want = np.zeros(img.shape, dtype=np.int64)
+    for j in range(3):
+        for i in range(3):
+            want += k[j, i] * p[j : j + img.shape[0], i : i + img.shape[1]]
+    np.testing.assert_array_equal(image.binomial_smooth(img), (want + 8) // 16)
+
+
+def test_noise_estimate_and_excess():
+    assert image.estimate_noise_sigma(_smooth_scene(121, 201, 0.0, 1)) < 0.7
+    for sigma in (2.0, 4.0, 8.0):
+        assert image.estimate_noise_sigma(_smooth_scene(121, 201, sigma, 7)) == pytest.approx(sigma, rel=0.15)
+    assert image.noise_excess(3.0, 5.0, 100, 100) == pytest.approx(4.0)
+    assert image.noise_excess(4.0, 2.4, 200, 120) == pytest.approx(0.0)  # a gain, not noise
+    ramp = np.arange(200, dtype=np.uint8)[None, :]
+    assert image.grey_spread(ramp) == 180
+
+
+def test_noise_equalise_smooths_only_unequal_pairs():
+    clean = _smooth_scene(64, 96, 0.0, 2)
+    noisy = _smooth_scene(64, 96, 6.0, 3)
+    l, r, gl, gr, done = image.noise_equalise(clean, clean, 2.3, 1, 2)
+    assert not done and l is clean and gl is clean
+    l, r, gl, gr, done = image.noise_equalise(clean, noisy, 2.3, 1, 2)
+    assert done
+    np.testing.assert_array_equal(l, image.binomial_smooth(clean))
+    np.testing.assert_array_equal(gr, image.binomial_smooth(image.binomial_smooth(noisy)))
+    assert not image.noise_equalise(clean, noisy, 0.0, 1, 2)[4]  # off
+
+
 def test_gradient_extremes():
     img = np.zeros((5, 6), np.uint8)
     img[:, 3:] = 255

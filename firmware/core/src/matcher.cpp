@@ -53,11 +53,11 @@ class StageClock {
 
 }  // namespace
 
-MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right, const ImageI32* labels_left,
+MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& right_in, const ImageI32* labels_left,
                                        const ImageI32* labels_right) const {
-  if (left.width != right.width || left.height != right.height || left.empty())
+  if (left_in.width != right_in.width || left_in.height != right_in.height || left_in.empty())
     throw std::invalid_argument("Matcher: left and right images must be non-empty and of equal size");
-  if (left.width > kMaxImageWidth || left.height > kMaxImageWidth)
+  if (left_in.width > kMaxImageWidth || left_in.height > kMaxImageWidth)
     throw std::invalid_argument("Matcher: images wider or taller than 32767 px are not supported");
   const MatcherParams& p = params_;
   std::lock_guard<std::mutex> lock(scratch_mu_);
@@ -66,8 +66,38 @@ MatchResult Matcher::match_with_labels(const ImageU8& left, const ImageU8& right
   MatchResult r;
   StageClock clock(r.timings);
 
+  // Noise equalisation (not in the paper, docs/algorithm.md 2c): when one camera is noisier than
+  // the other, both images are smoothed; `left` / `right` feed SLIC and the costs, `grad_in_*` the
+  // gradients (eq. 5). Otherwise all of them are the inputs, untouched.
+  ImageU8 smooth_l, smooth_r, gsmooth_l, gsmooth_r;
+  const ImageU8 *in_l = &left_in, *in_r = &right_in, *gin_l = &left_in, *gin_r = &right_in;
+  if (p.cost.noise_excess > 0.0) {
+    int spread_l = 1, spread_r = 1;
+    detail::run_pair(
+        threads, [&] { r.noise_sigma_left = estimate_noise_sigma(left_in); spread_l = grey_spread(left_in); },
+        [&] { r.noise_sigma_right = estimate_noise_sigma(right_in); spread_r = grey_spread(right_in); });
+    r.noise_excess = noise_excess(r.noise_sigma_left, r.noise_sigma_right, spread_l, spread_r);
+    r.noise_equalised = r.noise_excess > p.cost.noise_excess;
+    if (r.noise_equalised) {
+      // The gradient input continues from the image input's passes (binomial passes compose).
+      auto smooth = [&](const ImageU8& img, ImageU8& out, ImageU8& gout) {
+        out = img;
+        for (int k = 0; k < p.cost.noise_image_passes; ++k) out = binomial_smooth(out);
+        gout = p.cost.noise_gradient_passes >= p.cost.noise_image_passes ? out : img;
+        for (int k = p.cost.noise_gradient_passes >= p.cost.noise_image_passes ? p.cost.noise_image_passes : 0;
+             k < p.cost.noise_gradient_passes; ++k)
+          gout = binomial_smooth(gout);
+      };
+      detail::run_pair(threads, [&] { smooth(left_in, smooth_l, gsmooth_l); },
+                       [&] { smooth(right_in, smooth_r, gsmooth_r); });
+      in_l = &smooth_l, in_r = &smooth_r, gin_l = &gsmooth_l, gin_r = &gsmooth_r;
+    }
+  }
+  const ImageU8& left = *in_l;
+  const ImageU8& right = *in_r;
+
   ImageU16 grad_l, grad_r;                                                              // eq. (5)
-  detail::run_pair(threads, [&] { grad_l = gradient_magnitude(left); }, [&] { grad_r = gradient_magnitude(right); });
+  detail::run_pair(threads, [&] { grad_l = gradient_magnitude(*gin_l); }, [&] { grad_r = gradient_magnitude(*gin_r); });
   if (p.cost.gradient_gain_compensation) {  // docs/algorithm.md 2b (not in the paper)
     if (p.cost.gradient_gain_trigger == GainTrigger::Gradient) {
       r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);

@@ -81,11 +81,46 @@ inline ImageU8 close_mask(const ImageU8& m, int r) {
   return op(op(m, true), false);
 }
 
+// Texture (session 8): per pixel the (2r+1)^2 window clipped at the border, n*S2 - S1^2 > (n*t)^2 on the integer
+// luma, then the erosion (every window pixel within the image and rows < rows textured). Direct loops.
+inline ImageU8 textured_mask(const ImageRgb8& rgb, int rows, int r, double t) {
+  const int w = rgb.width, h = rgb.height;
+  ImageU8 tex(w, h, 0), out(w, h, 0);
+  if (t <= 0 || r < 1) return out;
+  rows = std::clamp(rows, 0, h);
+  auto luma = [&](int x, int y) {
+    const Rgb8 c = rgb.at(x, y);
+    return std::int64_t((77 * c.r + 150 * c.g + 29 * c.b + 128) >> 8);
+  };
+  for (int y = 0; y < rows; ++y)
+    for (int x = 0; x < w; ++x) {
+      std::int64_t n = 0, s1 = 0, s2 = 0;
+      for (int yy = y - r; yy <= y + r; ++yy)
+        for (int xx = x - r; xx <= x + r; ++xx) {
+          if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
+          const std::int64_t g = luma(xx, yy);
+          ++n, s1 += g, s2 += g * g;
+        }
+      tex.at(x, y) = std::uint8_t(double(n * s2 - s1 * s1) > t * t * double(n) * double(n));
+    }
+  for (int y = 0; y < rows; ++y)
+    for (int x = 0; x < w; ++x) {
+      bool all = true;
+      for (int yy = y - r; yy <= y + r; ++yy)
+        for (int xx = x - r; xx <= x + r; ++xx)
+          if (xx >= 0 && yy >= 0 && xx < w && yy < rows && !tex.at(xx, yy)) all = false;
+      out.at(x, y) = std::uint8_t(all);
+    }
+  return out;
+}
+
 inline ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows, const DetectParams& p) {
   ImageU8 m(rgb.width, rgb.height, 0);
+  const ImageU8 tex = textured_mask(rgb, rows, p.sky_texture_radius, p.sky_max_texture);
   for (int y = 0; y < rgb.height; ++y)
     for (int x = 0; x < rgb.width; ++x) {
       if (y >= rows) continue;
+      if (tex.at(x, y)) continue;
       if (p.sky_max_disparity_px > 0 && disp.at(x, y) != kInvalidDisp && disp.at(x, y) > p.sky_max_disparity_px * kDispScale) continue;
       const detect::Hsv h = detect::rgb_to_hsv(rgb.at(x, y));
       for (const HsvRange& r : p.sky_ranges)

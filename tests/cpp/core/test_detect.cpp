@@ -156,12 +156,14 @@ TEST(DetectStages, SkyMaskMatchesReference) {
     std::mt19937 rng(c.seed);
     for (std::size_t i = 0; i < s.rgb.size(); i += 3)  // random colours in a third of the pixels
       s.rgb.data[i] = {std::uint8_t(rng()), std::uint8_t(rng()), std::uint8_t(rng())};
-    for (double maxd : {0.0, 2.0}) {
-      DetectParams p;
-      p.sky_max_disparity_px = maxd;
-      for (int rows : {0, c.h / 3, c.h})
-        expect_same(detect::sky_mask(s.rgb, s.disp, rows, p), ref::sky_mask(s.rgb, s.disp, rows, p), "sky");
-    }
+    for (double maxd : {0.0, 2.0})
+      for (double tex : {0.0, 6.0, 20.0}) {
+        DetectParams p;
+        p.sky_max_disparity_px = maxd;
+        p.sky_max_texture = tex;  // session 8 texture test
+        for (int rows : {0, c.h / 3, c.h})
+          expect_same(detect::sky_mask(s.rgb, s.disp, rows, p), ref::sky_mask(s.rgb, s.disp, rows, p), "sky");
+      }
   }
 }
 

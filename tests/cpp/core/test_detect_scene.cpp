@@ -205,6 +205,11 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(p.contain_drop_nearer_only, d.contain_drop_nearer_only);
   EXPECT_EQ(p.contain_surround, d.contain_surround);
   EXPECT_DOUBLE_EQ(p.max_distance_m, d.max_distance_m);
+  EXPECT_DOUBLE_EQ(p.merge_group_max_rel, d.merge_group_max_rel);  // session 8
+  EXPECT_EQ(p.merge_attach, d.merge_attach);
+  EXPECT_DOUBLE_EQ(p.seen_through_drop_share, d.seen_through_drop_share);
+  EXPECT_DOUBLE_EQ(p.sky_max_texture, d.sky_max_texture);
+  EXPECT_EQ(p.sky_texture_radius, d.sky_texture_radius);
   EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
   EXPECT_DOUBLE_EQ(p.far_m, d.far_m);
   for (std::size_t i = 0; i < 3; ++i) {
@@ -218,6 +223,10 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(q.sky_limit, SkyLimit::Fraction);
   EXPECT_THROW(parse_config("[detect]\nkmeans_k = 17\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_limit = \"left\"\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nsky_max_texture = -1.0\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nmerge_group_max_rel = 1.5\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nseen_through_drop_share = 2.0\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nsky_texture_radius = 0\n", "t"), ConfigError);
   EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);
 }
 

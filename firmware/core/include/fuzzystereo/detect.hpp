@@ -64,6 +64,10 @@ struct DetectParams {
   double sky_upper_fraction = 0.5;     // rows above this fraction of the height (Fraction, or fallback)
   std::array<HsvRange, 3> sky_ranges{};  // blue sky, overcast/bright grey, sunset (docs/detection.md)
   double sky_max_disparity_px = 0.0;   // >0: a pixel with a valid disparity above this is never sky
+  double sky_max_texture = 0.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
+                                     // sky (session 8; grey levels 0..255; 6 measured, off by default: it
+                                     // caused closed-loop collisions, docs/results-detection.md "Session 8")
+  int sky_texture_radius = 2;        // ... r [px]
   // ---- k-means (eq. 22-23) ----
   int kmeans_k = 6;
   int kmeans_max_iterations = 30;
@@ -79,6 +83,11 @@ struct DetectParams {
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
+  double merge_group_max_rel = 0.0;   // complete linkage: a merged group's member medians span <= this share of the
+                                   // largest (session 8; 0 = single linkage, no group limit: the default,
+                                   // see docs/results-detection.md "Session 8" for the trade-off)
+  bool merge_attach = true;        // with complete linkage: each group then joins the touching larger group of
+                                   // nearest median within merge_max_rel_disparity (one step, no chains)
   int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
                                       // a gap up to this wide (0 = off)
   double split_min_rel = 0.12;     // split a component whose disparity histogram has two modes this far apart
@@ -106,6 +115,8 @@ struct DetectParams {
   // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
   double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
                                    // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
+  double seen_through_drop_share = 0.5;  // obstacles with at least this share of their pixels in columns where one
+                                   // nearer obstacle lies above and below them are dropped (session 8; 0 = off)
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
   int min_area_px = 200;           // smaller components are dropped
@@ -217,6 +228,11 @@ Hsv rgb_to_hsv(Rgb8 c);
 bool in_range(const Hsv& c, const HsvRange& r);
 // 1 for rows < rows_limit whose colour lies in an enabled range (and, when
 // p.sky_max_disparity_px > 0, whose disparity is invalid or not above it).
+// 1 for rows < rows_limit where every pixel of the (2r+1)^2 window (within the image and those rows) has a
+// grey-level (luma) standard deviation over its own (2r+1)^2 window (clipped at the border) above max_std:
+// the std test, then an erosion by the same window (docs/detection.md "(b) Texture"); all 0 when
+// max_std <= 0 or radius < 1.
+ImageU8 textured_mask(const ImageRgb8& rgb, int rows_limit, int radius, double max_std);
 ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows_limit, const DetectParams& p);
 
 struct KMeansResult {
@@ -290,6 +306,12 @@ void trim_sparse_columns(std::vector<Obstacle>& obstacles, ImageI32& labels, con
 // below_road_drop_share <= 0 or no line: unchanged.
 void drop_below_road(std::vector<Obstacle>& obstacles, ImageI32& labels, const std::vector<std::int32_t>& line_q4,
                      const DetectParams& p);
+
+// Seen through (docs/detection.md "(e) Seen through", session 8): an obstacle F is dropped when, for one nearer
+// obstacle H (median Q4 disparity > F's * (1 + merge_max_rel_disparity)), the columns where H has pixels
+// above F's highest and below F's lowest pixel of that column hold >= seen_through_drop_share of F's pixels
+// (labels == id + 1); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
+void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
 
 }  // namespace detect
 

@@ -33,6 +33,9 @@ struct MatchResult {
   ImageU8 densify_changed;                  // 0 kept, 1 filled, 2 removed as a speckle (then filled)
   std::uint32_t gradient_gain_q16 = 65536;  // factor applied to the right gradients (Q16; 65536 = none)
   double grey_quantile_shift = 0.0;         // grey-level shift that decided it [levels] (trigger "grey")
+  double noise_sigma_left = 0.0, noise_sigma_right = 0.0;  // estimated noise std [grey levels] (docs/algorithm.md 2c)
+  double noise_excess = 0.0;                // noise of the noisier image beyond the other's [grey levels]
+  bool noise_equalised = false;             // both images were smoothed (noise_excess > cost.noise_excess)
   StageTimings timings;
 };
 

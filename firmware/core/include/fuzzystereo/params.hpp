@@ -28,6 +28,10 @@ struct CostParams {
   double gradient_gain_deadband = 0.2;     // ... when their mean magnitudes differ by more than this
   GainTrigger gradient_gain_trigger = GainTrigger::Grey;  // ... or when the grey levels differ:
   double gradient_gain_grey_shift = 13.0;  // mean |quantile difference| [grey levels] above which
+  double noise_excess = 2.3;         // docs/algorithm.md 2c: smooth both images when one has more noise
+                                     // than the other by this [grey levels, std]; 0 = off
+  int noise_image_passes = 1;        // ... binomial 3x3 passes of the images given to SLIC and the costs
+  int noise_gradient_passes = 2;     // ... binomial 3x3 passes of the images the gradients (eq. 5) are taken of
   int inject_shift = 0;     // TEST ONLY: adds a bias to the right-image shift (fault injection)
 };
 

@@ -23,6 +23,17 @@ ImageU16 gradient_magnitude(const ImageU8& img);
 // an all-zero image).
 std::uint32_t compensate_gradient_gain(const ImageU16& ref, ImageU16& other, double deadband);
 double grey_quantile_shift(const ImageU8& a, const ImageU8& b);
+// Noise equalisation (not in the paper; docs/algorithm.md 2c).
+// Robust Immerkaer estimate of the white-noise std [grey levels]: median |N * I| / (6 * 0.67449)
+// with N = [1 -2 1; -2 4 -2; 1 -2 1] over the interior pixels (0 for images under 3 x 3).
+double estimate_noise_sigma(const ImageU8& img);
+// q95 - q5 of the grey levels (at least 1).
+int grey_spread(const ImageU8& img);
+// sqrt(|sigma_l^2 - (sigma_r * spread_l / spread_r)^2|): the noise one image has beyond the
+// other's, at the left image's contrast [grey levels].
+double noise_excess(double sigma_l, double sigma_r, int spread_l, int spread_r);
+// One pass of the 3x3 binomial filter [1 2 1]^T [1 2 1] / 16, border replicated, rounded half up.
+ImageU8 binomial_smooth(const ImageU8& img);
 
 // ---- segmentation/ --------------------------------------------------------------------------
 // Horizontal run of one segment in one row: pixels [x0, x1) of row y.

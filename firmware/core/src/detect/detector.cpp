@@ -118,6 +118,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
   // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
   detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
+  // Seen through (session 8): a farther obstacle enclosed above and below by a nearer one.
+  detect::drop_seen_through(r.obstacles, r.obstacle_labels, p);
   // Box extent (our addition): sparse side columns cut, then the foot rows the road band removed.
   detect::trim_sparse_columns(r.obstacles, r.obstacle_labels, calib, p, &r.sky_mask, &disp);
   detect::extend_to_ground(r.obstacles, r.road_line_q4, p);

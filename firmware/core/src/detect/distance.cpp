@@ -56,6 +56,11 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
   };
   if (p.merge_gap_px >= 0 && p.merge_max_rel_disparity > 0) {
     const int g = p.merge_gap_px;
+    struct Pair {
+      std::int64_t num, den;  // |m1 - m2| / max(m1, m2) as an exact fraction (order of the complete linkage)
+      int c1, c2;
+    };
+    std::vector<Pair> pairs;
     for (int c1 = 1; c1 <= count; ++c1) {
       const Acc& a = acc[std::size_t(c1)];
       if (a.n == 0) continue;
@@ -64,9 +69,33 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
         if (b.n == 0 || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + g || a.y0 > b.y1 + g) continue;
         const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
         if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
-        const int r1 = find(c1), r2 = find(c2);
-        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+        if (p.merge_group_max_rel <= 0) {  // single linkage (the pairs' order does not matter)
+          const int r1 = find(c1), r2 = find(c2);
+          if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+        } else {
+          pairs.push_back({std::abs(m1 - m2), std::max<std::int64_t>(1, std::max(m1, m2)), c1, c2});
+        }
       }
+    }
+    // Complete linkage on the members' medians (session 8, docs/detection.md "(e) Fragment merging"): the
+    // closest pairs first (ties by label), two groups join only when all their members' medians together
+    // span <= merge_group_max_rel of the largest, so small fragments at an intermediate depth (the
+    // matcher's ramp between two obstacles) no longer chain two obstacles 10-25 % apart into one.
+    std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) {
+      const std::int64_t l = x.num * y.den, r = y.num * x.den;
+      if (l != r) return l < r;
+      return x.c1 != y.c1 ? x.c1 < y.c1 : x.c2 < y.c2;
+    });
+    std::vector<int> gmin(med), gmax(med);
+    for (const Pair& q : pairs) {
+      const int r1 = find(q.c1), r2 = find(q.c2);
+      if (r1 == r2) continue;
+      const int lo = std::min(gmin[std::size_t(r1)], gmin[std::size_t(r2)]);
+      const int hi = std::max(gmax[std::size_t(r1)], gmax[std::size_t(r2)]);
+      if (double(hi - lo) > p.merge_group_max_rel * double(hi)) continue;
+      const int r = std::min(r1, r2);
+      parent[std::size_t(std::max(r1, r2))] = r;
+      gmin[std::size_t(r)] = lo, gmax[std::size_t(r)] = hi;
     }
   }
   // Each group's box, count and pixels go to its root (the other members keep n = 0).
@@ -86,6 +115,43 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     }
   };
   absorb();
+  // Attaching groups (session 8, with complete linkage): a group whose box grown by merge_gap_px overlaps the
+  // box of a larger group (more pixels) whose own lower median lies within merge_max_rel_disparity of its
+  // lower median joins the one of those with the nearest median (ties: more pixels, then the smaller label).
+  // Decided on the groups before the pass, and a group that attaches is no target, so there are no chains:
+  // a fragment joins one obstacle, never two obstacles to each other.
+  if (p.merge_group_max_rel > 0 && p.merge_attach && p.merge_gap_px >= 0 && p.merge_max_rel_disparity > 0) {
+    const int g = p.merge_gap_px;
+    std::vector<int> gmed(std::size_t(count) + 1, 0), target(std::size_t(count) + 1, 0);
+    for (int c = 1; c <= count; ++c) {
+      Acc& a = acc[std::size_t(c)];
+      if (a.n == 0) continue;
+      const std::size_t mid = (a.d.size() - 1) / 2;
+      std::vector<std::int16_t> v(a.d);
+      std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+      gmed[std::size_t(c)] = v[mid];
+    }
+    for (int c1 = 1; c1 <= count; ++c1) {
+      const Acc& a = acc[std::size_t(c1)];
+      if (a.n == 0) continue;
+      int best = 0;
+      for (int c2 = 1; c2 <= count; ++c2) {
+        const Acc& b = acc[std::size_t(c2)];
+        if (c2 == c1 || b.n <= a.n || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + g || a.y0 > b.y1 + g) continue;
+        const int m1 = gmed[std::size_t(c1)], m2 = gmed[std::size_t(c2)];
+        if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
+        if (best == 0) { best = c2; continue; }
+        const int db = std::abs(gmed[std::size_t(best)] - m1), dc = std::abs(m2 - m1);
+        if (dc < db || (dc == db && b.n > acc[std::size_t(best)].n)) best = c2;
+      }
+      target[std::size_t(c1)] = best;
+    }
+    for (int c = 1; c <= count; ++c) {
+      const int t = target[std::size_t(c)];
+      if (t && target[std::size_t(t)] == 0) parent[std::size_t(c)] = t;  // c is a root: its group moves to t
+    }
+    absorb();
+  }
   // Edge continuity (our addition, session 5, docs/detection.md "(e) Edge continuity"): two groups side
   // by side (horizontal gap <= max(merge_gap_px, 0), boxes may overlap by up to merge_edge_columns
   // columns, rows overlapping by >= half the lower box) whose facing edges have the same disparity (lower

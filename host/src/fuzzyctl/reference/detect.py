@@ -226,6 +226,27 @@ def rgb_to_hsv(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return h, s, v
 
 
+def textured_mask(rgb: np.ndarray, rows: int, radius: int, max_std: float) -> np.ndarray:
+    """Texture (docs/detection.md "(b) Texture", session 8): grey-level (integer luma) standard deviation over the
+    (2r+1)^2 window clipped at the border > max_std, then eroded by the same window within rows < rows."""
+    hh, ww = rgb.shape[:2]
+    out = np.zeros((hh, ww), bool)
+    rows = int(np.clip(rows, 0, hh))
+    if max_std <= 0 or radius < 1 or rows == 0:
+        return out
+    r = rgb.astype(np.int64)
+    g = ((77 * r[..., 0] + 150 * r[..., 1] + 29 * r[..., 2] + 128) >> 8).astype(np.float64)
+    k = (2 * radius + 1, 2 * radius + 1)
+    box = lambda a: cv2.boxFilter(a, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)  # noqa: E731
+    n = box(np.ones_like(g))
+    mean = box(g) / n
+    var = box(g * g) / n - mean * mean
+    tex = (var > max_std * max_std)[:rows].astype(np.uint8)
+    er = cv2.erode(tex, np.ones(k, np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=1)
+    out[:rows] = er > 0
+    return out
+
+
 def sky_mask(rgb: np.ndarray, disp: np.ndarray, rows: int, p: DetectParams) -> np.ndarray:
     h, s, v = rgb_to_hsv(rgb)
     m = np.zeros(h.shape, bool)
@@ -239,6 +260,7 @@ def sky_mask(rgb: np.ndarray, disp: np.ndarray, rows: int, p: DetectParams) -> n
     if p.sky_max_disparity_px > 0:
         with np.errstate(invalid="ignore"):
             m &= ~(np.isfinite(disp) & (disp > p.sky_max_disparity_px))
+    m &= ~textured_mask(rgb, rows, int(getattr(p, "sky_texture_radius", 2)), float(getattr(p, "sky_max_texture", 0.0)))
     m[max(0, rows):] = False
     return m.astype(np.uint8)
 
@@ -397,9 +419,14 @@ def _group_stats(comp: np.ndarray, disp: np.ndarray, roots: np.ndarray):
     return g, box, med, cnt
 
 
-def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float) -> np.ndarray:
+def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float, group_rel: float = 0.0,
+                    attach: bool = False) -> np.ndarray:
     """Component -> group root (smallest label): boxes grown by `gap` overlap and the medians differ
-    by <= rel of the larger (single linkage; the firmware uses the lower median of Q4 values)."""
+    by <= rel of the larger (the firmware uses the lower median of Q4 values). group_rel <= 0: single
+    linkage. group_rel > 0 (session 8): complete linkage, closest pairs first, two groups join only when all
+    their members' medians span <= group_rel of the largest; then, with `attach`, each group joins the
+    touching larger group (more pixels) whose group median is nearest within rel (no chains: a group that
+    joins is no target)."""
     joins = _Joins(range(n + 1))
     if gap < 0 or rel <= 0:
         return np.arange(n + 1)
@@ -409,17 +436,55 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
         if len(xs):
             box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
             med[c] = float(np.median(disp[ys, xs]))
+
+    def touch(a, b):
+        return not (b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap)
+
     cs = sorted(box)
+    pairs = []
     for i, c1 in enumerate(cs):
-        a = box[c1]
         for c2 in cs[i + 1:]:
-            b = box[c2]
-            if b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap:
+            if not touch(box[c1], box[c2]):
                 continue
             if abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
                 continue
-            joins.join(c1, c2)
-    return np.array([joins.find(c) for c in range(n + 1)])
+            if group_rel <= 0:
+                joins.join(c1, c2)
+            else:
+                pairs.append((abs(med[c1] - med[c2]) / max(med[c1], med[c2], 1e-9), c1, c2))
+    if group_rel <= 0:
+        return np.array([joins.find(c) for c in range(n + 1)])
+    lo = dict(med)
+    hi = dict(med)
+    for _, c1, c2 in sorted(pairs):
+        r1, r2 = joins.find(c1), joins.find(c2)
+        if r1 == r2:
+            continue
+        glo, ghi = min(lo[r1], lo[r2]), max(hi[r1], hi[r2])
+        if ghi - glo > group_rel * ghi + 1e-9:
+            continue
+        joins.join(r1, r2)
+        r = joins.find(r1)
+        lo[r], hi[r] = glo, ghi
+    roots = np.array([joins.find(c) for c in range(n + 1)])
+    if not attach:
+        return roots
+    _, gbox, gmed, gcnt = _group_stats(comp, disp, roots)
+    target = {}
+    for g1 in gbox:
+        best = None
+        for g2 in gbox:
+            if g2 == g1 or gcnt[g2] <= gcnt[g1] or not touch(gbox[g1], gbox[g2]):
+                continue
+            if abs(gmed[g1] - gmed[g2]) > rel * max(gmed[g1], gmed[g2]) + 1e-9:
+                continue
+            key = (abs(gmed[g2] - gmed[g1]), -gcnt[g2], g2)
+            if best is None or key < best[0]:
+                best = (key, g2)
+        if best is not None:
+            target[g1] = best[1]
+    move = {g: t for g, t in target.items() if t not in target}
+    return np.array([move.get(int(r), int(r)) for r in roots])
 
 
 def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: float) -> float | None:
@@ -682,6 +747,47 @@ def drop_below_road(obstacles: list, ol: np.ndarray, a: float, b: float, horizon
     return kept
 
 
+def drop_seen_through(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
+    """Seen through (docs/detection.md "(e) Seen through", session 8): an obstacle F is dropped when, for one
+    nearer obstacle H (disparity > F's * (1 + merge_max_rel_disparity)), the columns where H has pixels above
+    F's highest and below F's lowest pixel there hold >= seen_through_drop_share of F's pixels; the rest are
+    renumbered (ids, ol)."""
+    share = float(getattr(p, "seen_through_drop_share", 0.0))
+    if share <= 0 or len(obstacles) < 2:
+        return obstacles
+    w = ol.shape[1]
+    ext = {}
+    for o in obstacles:
+        ys, xs = np.nonzero(ol == o.id + 1)
+        top = np.full(w, np.inf)
+        bot = np.full(w, -np.inf)
+        cnt = np.bincount(xs, minlength=w)
+        np.minimum.at(top, xs, ys)
+        np.maximum.at(bot, xs, ys)
+        ext[o.id] = (top, bot, cnt)
+    drop = set()
+    for f in obstacles:
+        tf, bf, cf = ext[f.id]
+        for g in obstacles:
+            if g.id == f.id or g.disparity_px <= f.disparity_px * (1.0 + p.merge_max_rel_disparity) + 1e-9:
+                continue
+            tg, bg, cg = ext[g.id]
+            enclosed = (cf > 0) & (cg > 0) & (tg < tf) & (bg > bf)
+            if cf[enclosed].sum() >= share * cf.sum() and cf.sum() > 0:
+                drop.add(f.id)
+                break
+    kept = []
+    remap = np.zeros(len(obstacles) + 1, np.int32)
+    for o in obstacles:
+        if o.id in drop:
+            continue
+        kept.append(o)
+        remap[o.id + 1] = len(kept)
+        o.id = len(kept) - 1
+    ol[:] = remap[ol]
+    return kept
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
@@ -716,7 +822,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     comp, n = components(kept, disp, p.cc_max_step_px, float(p.cc_max_rel_step), float(p.cc_min_step_px))
     comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
                             int(p.split_rounds))
-    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity))
+    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
+                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)))
     roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
                         int(p.merge_edge_columns))
     roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
@@ -754,6 +861,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         out.append(o)
     if found:
         out = drop_below_road(out, ol, a, b, horizon, p)  # docs/detection.md "(e) Below the road"
+    out = drop_seen_through(out, ol, p)  # docs/detection.md "(e) Seen through"
     trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
     if found:
         extend_to_ground(out, a, b, horizon, h, p)

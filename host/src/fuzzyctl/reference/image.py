@@ -79,3 +79,74 @@ def grey_quantile_shift(a: np.ndarray, b: np.ndarray) -> float:
         return np.array([min(int(np.searchsorted(100 * c, p * img.size)), 255) for p in range(5, 100, 5)])
 
     return float(np.abs(quantiles(a) - quantiles(b)).sum()) / 19.0
+
+
+def estimate_noise_sigma(img: np.ndarray) -> float:
+    """Noise std [grey levels] (not in the paper; docs/algorithm.md 2c), twin of the firmware's
+    ``estimate_noise_sigma``: median of |N * I| over the interior pixels, N = [1 -2 1; -2 4 -2;
+    1 -2 1] (Immerkaer 1996, median instead of mean so edges and texture do not count), divided by
+    6 * 0.67449 (median |X| of X ~ N(0, 36 sigma^2)), over the interior pixels of rows 1, 3, 5, ...
+    Exact: integer convolution, lower median."""
+    if img.ndim != 2 or img.shape[0] < 3 or img.shape[1] < 3:
+        return 0.0
+    f = img.astype(np.int32)
+    k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.int32)
+    h, w = f.shape
+    v = np.zeros((h - 2, w - 2), dtype=np.int32)
+    for j in range(3):
+        for i in range(3):
+            v += k[j, i] * f[j : j + h - 2, i : i + w - 2]
+    a = np.sort(np.abs(v[::2]).ravel())  # rows y = 1, 3, 5, ... of the image
+    n = a.size
+    median = int(a[(n + 1) // 2 - 1])  # the smallest m with 2 * #(<= m) >= n
+    return median / (6.0 * 0.67449)
+
+
+def binomial_smooth(img: np.ndarray) -> np.ndarray:
+    """One pass of the 3x3 binomial [1 2 1]^T [1 2 1] / 16, border replicated, rounded half up
+    (uint8), twin of the firmware's ``binomial_smooth`` (exact: integers)."""
+    f = np.pad(img.astype(np.int32), 1, mode="edge")
+    col = f[:-2, :] + 2 * f[1:-1, :] + f[2:, :]
+    s = col[:, :-2] + 2 * col[:, 1:-1] + col[:, 2:]
+    return ((s + 8) >> 4).astype(np.uint8)
+
+
+
+def grey_spread(img: np.ndarray) -> int:
+    """q95 - q5 of the grey levels (at least 1), twin of the firmware's ``grey_spread`` (exact)."""
+    if img.size == 0:
+        return 1
+    c = np.cumsum(np.bincount(img.ravel(), minlength=256)).astype(np.int64)
+
+    def q(p: int) -> int:
+        return min(int(np.searchsorted(100 * c, p * img.size)), 255)
+
+    return max(1, q(95) - q(5))
+
+
+def noise_excess(sigma_l: float, sigma_r: float, spread_l: int, spread_r: int) -> float:
+    """Noise of the noisier image beyond the other's at the left image's contrast [grey levels]:
+    sqrt(|sigma_l^2 - (sigma_r * spread_l / spread_r)^2|), twin of the firmware's ``noise_excess``."""
+    r = sigma_r * spread_l / max(1, spread_r)
+    return float(np.sqrt(abs(sigma_l * sigma_l - r * r)))
+
+
+def noise_equalise(left: np.ndarray, right: np.ndarray, excess: float, image_passes: int,
+                   gradient_passes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The matcher's noise equalisation (not in the paper; docs/algorithm.md 2c): when one image has
+    more noise than the other by more than ``excess`` (0 = off), both get ``image_passes`` binomial
+    passes for SLIC and the costs and ``gradient_passes`` for the gradients of eq. (5). Returns
+    (left, right, gradient input left, gradient input right, smoothed)."""
+    if excess <= 0.0:
+        return left, right, left, right, False
+    e = noise_excess(estimate_noise_sigma(left), estimate_noise_sigma(right), grey_spread(left), grey_spread(right))
+    if e <= excess:
+        return left, right, left, right, False
+
+    def passes(img: np.ndarray, n: int) -> np.ndarray:
+        for _ in range(n):
+            img = binomial_smooth(img)
+        return img
+
+    return (passes(left, image_passes), passes(right, image_passes), passes(left, gradient_passes),
+            passes(right, gradient_passes), True)

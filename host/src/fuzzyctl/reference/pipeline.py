@@ -82,8 +82,11 @@ def match(
     c, s, lr, e, dn = cfg.cost, cfg.segmentation, cfg.lr_check, cfg.esr, cfg.densify
     clock = _Clock()
 
-    grad_l = image.gradient_magnitude(left)  # eq. (5)
-    grad_r = image.gradient_magnitude(right)
+    # not in the paper: docs/algorithm.md 2c (a pair of unequal noise is smoothed)
+    left, right, gin_l, gin_r, _ = image.noise_equalise(left, right, c.noise_excess, c.noise_image_passes,
+                                                         c.noise_gradient_passes)
+    grad_l = image.gradient_magnitude(gin_l)  # eq. (5)
+    grad_r = image.gradient_magnitude(gin_r)
     if c.gradient_gain_compensation:  # not in the paper: docs/algorithm.md 2b
         if c.gradient_gain_trigger == "gradient":
             grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, c.gradient_gain_deadband)

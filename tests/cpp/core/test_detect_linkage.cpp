@@ -1,0 +1,151 @@
+// Fragment merging by complete linkage and attaching (session 8, docs/detection.md "(e) Fragment merging"):
+// a small fragment at an intermediate depth no longer chains two obstacles 15 % apart, and a fragment the
+// span limit refuses still joins the obstacle whose median it is near.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "fuzzystereo/detect.hpp"
+
+namespace fs {
+namespace {
+
+void fill(ImageI32& comp, ImageI16& disp, int label, int x0, int y0, int x1, int y1, int q4) {
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) comp.at(x, y) = label, disp.at(x, y) = std::int16_t(q4);
+}
+
+DetectParams isolated() {  // only fragment merging acts
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.max_distance_m = 0.0;
+  p.merge_gap_px = 8;
+  p.merge_max_rel_disparity = 0.1;
+  p.merge_edge_rel_disparity = 0.0;
+  p.merge_occluded_max_gap_px = 0;
+  p.contain_min_inside = 0.0;
+  return p;
+}
+
+const StereoCalib kCalib{200.0, 50.0, 30.0, 0.1, 0.5, 0.0};
+
+TEST(DetectLinkage, BridgeFragmentNoLongerChainsTwoObstacles) {
+  // A at d = 20 px (Q4 320), B at 17 px (272, 15 % farther), 10 columns apart (farther than merge_gap_px), and
+  // a 6x11 bridge C at 18.5 px (296) between them: within 10 % of both (7.5 % and 8.1 %).
+  ImageI32 comp(100, 60, 0);
+  ImageI16 disp(100, 60, kInvalidDisp);
+  fill(comp, disp, 1, 10, 10, 39, 49, 320);
+  fill(comp, disp, 2, 42, 20, 47, 30, 296);
+  fill(comp, disp, 3, 50, 10, 79, 39, 272);
+  DetectParams p = isolated();
+  p.merge_group_max_rel = 0.0;  // single linkage: A - C - B is one chain
+  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_EQ(o[0].x0, 10);
+  EXPECT_EQ(o[0].x1, 79);
+  p.merge_group_max_rel = 0.12;  // A + C spans 7.5 %; adding B would span 15 %: refused
+  p.merge_attach = true;         // and B (15 % from the group's median) does not attach
+  ImageI32 labels;
+  o = detect::measure_obstacles(comp, 3, disp, kCalib, p, &labels);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].x0, 10);  // nearest first: A with the bridge
+  EXPECT_EQ(o[0].x1, 47);
+  EXPECT_EQ(o[0].pixel_count, 1200 + 66);
+  EXPECT_EQ(o[0].disparity_q4, 320);
+  EXPECT_EQ(o[1].x0, 50);
+  EXPECT_EQ(o[1].x1, 79);
+  EXPECT_EQ(o[1].disparity_q4, 272);
+  EXPECT_EQ(labels.at(45, 25), 1);
+  EXPECT_EQ(labels.at(60, 20), 2);
+  p.merge_group_max_rel = 0.16;  // a span limit above the 15 %: one chain again
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+}
+
+TEST(DetectLinkage, FragmentRefusedBySpanAttachesToNearestGroup) {
+  // A at Q4 320 (1200 px); K at 300 (6.25 % from A) and H at 344 (7 % from A) beside it; K and H are 12.8 %
+  // apart. The closest pair A-K joins first; A-H would make the span 300..344 = 12.8 % > 12 %: refused.
+  // H's median is within 10 % of the group's (320): it attaches.
+  ImageI32 comp(100, 60, 0);
+  ImageI16 disp(100, 60, kInvalidDisp);
+  fill(comp, disp, 1, 10, 10, 39, 49, 320);
+  fill(comp, disp, 2, 42, 20, 45, 29, 300);
+  fill(comp, disp, 3, 44, 32, 49, 41, 344);
+  DetectParams p = isolated();
+  p.merge_group_max_rel = 0.12;
+  p.merge_attach = false;
+  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].pixel_count, 60);  // H alone, nearest
+  EXPECT_EQ(o[1].pixel_count, 1240);
+  p.merge_attach = true;
+  o = detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_EQ(o[0].pixel_count, 1300);
+  EXPECT_EQ(o[0].x1, 49);
+  p.merge_group_max_rel = 0.0;  // single linkage joins all three directly
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+}
+
+}  // namespace
+}  // namespace fs
+
+namespace fs {
+namespace {
+
+Obstacle box_obstacle(int id, int x0, int y0, int x1, int y1, int q4, ImageI32& labels) {
+  Obstacle o;
+  o.id = id, o.x0 = x0, o.y0 = y0, o.x1 = x1, o.y1 = y1, o.disparity_q4 = q4;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      if (labels.at(x, y) == 0) labels.at(x, y) = id + 1, ++o.pixel_count;
+  return o;
+}
+
+TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
+  // H: a face at Q4 320, rows 10..49, columns 10..49, with a hole (rows 20..29, columns 20..35) where the
+  // matcher measured a blob F at Q4 240 (25 % farther). G at 240 beside H (columns 60..79): not enclosed.
+  ImageI32 labels(100, 60, 0);
+  std::vector<Obstacle> o;
+  o.push_back(box_obstacle(1, 20, 20, 35, 29, 240, labels));  // F first so that H's rectangle leaves its hole
+  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
+  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
+  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  // ids: 0 = H, 1 = F, 2 = G; labels hold id + 1.
+  DetectParams p;
+  p.seen_through_drop_share = 0.0;
+  auto off = o;
+  ImageI32 l0 = labels;
+  detect::drop_seen_through(off, l0, p);
+  EXPECT_EQ(off.size(), 3u);
+  p.seen_through_drop_share = 0.5;
+  auto on = o;
+  ImageI32 l1 = labels;
+  detect::drop_seen_through(on, l1, p);
+  ASSERT_EQ(on.size(), 2u);
+  EXPECT_EQ(on[0].disparity_q4, 320);
+  EXPECT_EQ(on[1].disparity_q4, 240);
+  EXPECT_EQ(on[1].x0, 60);  // G kept, renumbered id 1
+  EXPECT_EQ(on[1].id, 1);
+  EXPECT_EQ(l1.at(25, 25), 0);   // F's pixels left the labels
+  EXPECT_EQ(l1.at(70, 30), 2);   // G's pixels renumbered
+  EXPECT_EQ(l1.at(12, 12), 1);
+  // Within fragment merging's tolerance (F at 300 vs 320: 6.7 % < 10 %) F is not "farther": kept.
+  auto near = o;
+  near[1].disparity_q4 = 300;
+  ImageI32 l2 = labels;
+  detect::drop_seen_through(near, l2, p);
+  EXPECT_EQ(near.size(), 3u);
+  // F sticking out below H's face in its columns (H only above): kept.
+  ImageI32 l3(100, 60, 0);
+  std::vector<Obstacle> q;
+  q.push_back(box_obstacle(1, 20, 40, 35, 55, 240, l3));
+  q.push_back(box_obstacle(0, 10, 10, 49, 39, 320, l3));
+  std::sort(q.begin(), q.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  detect::drop_seen_through(q, l3, p);
+  EXPECT_EQ(q.size(), 2u);
+}
+
+}  // namespace
+}  // namespace fs
