@@ -89,9 +89,9 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas;
   int moving_min_hits, static_track_cells;
-  bool static_track_keep_circles;
+  bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -108,6 +108,10 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
+  p.reach_travel_rate = v.flag("loop.reach_travel_rate");
+  p.reach_travel_noise_sigmas = v.num("loop.reach_travel_noise_sigmas");
+  p.reach_lost_tracks = v.flag("loop.reach_lost_tracks");
+  p.reach_holding_robot = v.flag("loop.reach_holding_robot");
   return p;
 }
 
@@ -334,6 +338,7 @@ LoopResult RobotLoop::run() {
   const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
+  robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks)
   const robot::Planner planner(I.pp, I.rp);
   robot::DiffDriveMixer mixer(I.rp);
   robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
@@ -512,6 +517,7 @@ LoopResult RobotLoop::run() {
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, visible);
+    if (lp.reach_lost_tracks) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
     // ---- plan ----
@@ -579,9 +585,16 @@ LoopResult RobotLoop::run() {
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
             // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
+            // reach_travel_rate: grown at most at the measured travel rate (a static obstacle's
+            // track with a noise velocity stops growing 1 m circles). reach_holding_robot: a set
+            // that holds the robot is kept for a track without static support (a mover's: the robot
+            // may then only move away from where it was last seen; seed 11, scenario 92).
             CircleObstacle reach;
-            if (robot::reachable_set(tr.last_meas_p, tr.radius_m, robot::norm(o.vel), age_s, lp.near_track_reach_cap_m,
-                                     pose.pos(), I.rp.radius_m, lp.near_track_m, reach)) {
+            const double speed = robot::reach_speed(robot::norm(o.vel), tr.first_meas_p, tr.last_meas_p,
+                                                    robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
+                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
+            if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
+                                     I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;
               obstacles.push_back(reach);
               kinds.push_back('r');
@@ -591,6 +604,31 @@ LoopResult RobotLoop::run() {
         }
         obstacles.push_back(o);
         kinds.push_back('v');
+      }
+      // Deleted confirmed tracks (reach_lost_tracks): a mover-like track without static support that
+      // the tracker deleted for visible misses of its (wrong) prediction still gives its reachable
+      // set, by the same rules as a live one, until moving_max_age_s after its last measurement.
+      if (lp.reach_lost_tracks && lp.near_track_reach_cap_m > 0) {
+        for (const auto& tr : lost_tracks.lost()) {
+          const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
+          if (age_s <= lp.near_track_max_age_s || age_s > lp.moving_max_age_s) continue;
+          if (robot::norm(tr.vel()) < lp.moving_speed_mps || visible(tr.last_meas_p)) continue;
+          const bool supported =
+              lp.static_track_cells > 0 &&
+              world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                        tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells;
+          if (supported) continue;
+          CircleObstacle reach;
+          const double speed = robot::reach_speed(robot::norm(tr.vel()), tr.first_meas_p, tr.last_meas_p,
+                                                  robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
+                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
+          if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
+                                   I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot)) {
+            reach.transient = true;
+            obstacles.push_back(reach);
+            kinds.push_back('l');
+          }
+        }
       }
     }
     // Latency compensation: the command computed now reaches the motors after the processing

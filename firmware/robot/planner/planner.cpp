@@ -349,12 +349,18 @@ Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, dou
 }
 
 bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
-                   double robot_radius, double near_m, CircleObstacle& out) {
+                   double robot_radius, double near_m, CircleObstacle& out, bool keep_holding) {
   const double grown = r + std::min(std::max(0.0, speed * age_s), std::max(0.0, cap_m));
   const double dl = norm(last_p - robot_pos);
-  if (dl > near_m + grown || dl <= grown + robot_radius) return false;
+  if (dl > near_m + grown || (!keep_holding && dl <= grown + robot_radius)) return false;
   out = {last_p, grown, {}};
   return true;
+}
+
+double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate,
+                   double noise_m) {
+  if (!use_travel_rate || !(life_s > 0.0)) return filtered_speed;
+  return std::min(filtered_speed, std::max(0.0, norm(last_p - first_p) - std::max(0.0, noise_m)) / life_s);
 }
 
 double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 start, Vec2 goal, double radius,

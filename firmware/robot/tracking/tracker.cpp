@@ -157,4 +157,16 @@ std::vector<CircleObstacle> MultiTracker::obstacles(bool include_tentative, doub
   return out;
 }
 
+void LostTracks::update(const std::vector<Track>& tracks, std::int64_t t_ns, double keep_s) {
+  for (const Track& old : prev_) {
+    const bool alive = std::any_of(tracks.begin(), tracks.end(), [&](const Track& tr) { return tr.id == old.id; });
+    if (!alive) lost_.push_back(old);
+  }
+  const std::int64_t keep_ns = s_to_ns(keep_s);
+  std::erase_if(lost_, [&](const Track& tr) { return t_ns - tr.last_meas_ns > keep_ns; });
+  prev_.clear();
+  for (const Track& tr : tracks)
+    if (tr.confirmed) prev_.push_back(tr);
+}
+
 }  // namespace fs::robot

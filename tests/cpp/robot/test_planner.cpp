@@ -65,6 +65,25 @@ TEST(Planner, ReachableSetOfACoastingTrack) {
   EXPECT_NEAR(o.r, 0.8, 1e-12);  // capped at 0.6
   EXPECT_FALSE(reachable_set({3.0, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));  // beyond near + grown
   EXPECT_FALSE(reachable_set({0.5, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o));  // would hold the robot
+  ASSERT_TRUE(reachable_set({0.5, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o, true));  // kept when asked
+  EXPECT_NEAR(o.r, 0.4, 1e-12);
+  EXPECT_FALSE(reachable_set({3.0, 0.0}, 0.2, 0.1, 2.0, 0.6, {0.0, 0.0}, 0.15, 1.5, o, true));  // still too far
+}
+
+TEST(Planner, ReachSpeedIsAtMostTheTravelRate) {
+  // A static obstacle's track: filtered 0.3 m/s, but its measurements moved 0.1 m in 4 s.
+  EXPECT_NEAR(reach_speed(0.3, {1.0, 0.0}, {1.1, 0.0}, 4.0, true), 0.025, 1e-12);
+  EXPECT_NEAR(reach_speed(0.3, {1.0, 0.0}, {1.1, 0.0}, 4.0, false), 0.3, 1e-12);  // off: filtered speed
+  // A mover whose filter over-reads (seed 11, scenario 92: 0.32 against 0.13 m/s, 0.43 m in 3.4 s).
+  EXPECT_NEAR(reach_speed(0.32, {4.83, -2.78}, {4.87, -3.21}, 3.4, true), std::hypot(0.04, 0.43) / 3.4, 1e-12);
+  // Never faster than the filter; one measurement (no life): the filtered speed.
+  EXPECT_NEAR(reach_speed(0.1, {0.0, 0.0}, {1.0, 0.0}, 1.0, true), 0.1, 1e-12);
+  EXPECT_NEAR(reach_speed(0.2, {0.0, 0.0}, {0.0, 0.0}, 0.0, true), 0.2, 1e-12);
+  // Noise subtracted: a young static track, 0.15 m of jitter in 0.8 s at 3 m (std 0.14 m, 2 std).
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {2.15, 0.0}, 0.8, true, 0.28), 0.0, 1e-12);
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {2.15, 0.0}, 0.8, true, 0.0), 0.15 / 0.8, 1e-12);
+  // ...while a mover that went 1 m in 4 s keeps most of its rate.
+  EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {3.0, 0.0}, 4.0, true, 0.28), 0.72 / 4.0, 1e-12);
 }
 
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {

@@ -170,6 +170,34 @@ TEST(Tracker, DeletedAfterKVisibleMissesButCoastsOutOfView) {
   EXPECT_TRUE(b.tracks().empty());
 }
 
+TEST(Tracker, LostTracksRemembersADeletedConfirmedTrackUntilKeepS) {
+  TrackerParams tp;
+  tp.confirm_hits = 2;
+  tp.max_misses = 2;
+  MultiTracker mt(tp);
+  LostTracks lost;
+  const auto all = [](Vec2) { return true; };
+  // A confirmed track (3 hits, last measured at 0.2 s at (2.3, 0.5)) and a tentative one.
+  for (int f = 0; f < 3; ++f) {
+    mt.step(s_to_ns(0.1 * f), {{{2.0 + 0.15 * f, 0.5}, 0.2, 0, 0}}, all);
+    lost.update(mt.tracks(), s_to_ns(0.1 * f), 1.0);
+  }
+  mt.step(s_to_ns(0.3), {{{-1.0, -1.0}, 0.1, 0, 0}}, all);  // miss 1 of the confirmed; a new tentative
+  lost.update(mt.tracks(), s_to_ns(0.3), 1.0);
+  EXPECT_TRUE(lost.lost().empty());
+  mt.step(s_to_ns(0.4), {}, all);  // miss 2: the confirmed track is deleted, the tentative dies too
+  lost.update(mt.tracks(), s_to_ns(0.4), 1.0);
+  EXPECT_TRUE(mt.tracks().empty());
+  ASSERT_EQ(lost.lost().size(), 1u);  // only the confirmed one is remembered
+  EXPECT_NEAR(lost.lost()[0].last_meas_p.x, 2.3, 1e-12);
+  EXPECT_NEAR(lost.lost()[0].first_meas_p.x, 2.0, 1e-12);
+  EXPECT_EQ(lost.lost()[0].last_meas_ns, s_to_ns(0.2));
+  lost.update(mt.tracks(), s_to_ns(1.2), 1.0);  // 1.0 s after its last measurement: kept
+  EXPECT_EQ(lost.lost().size(), 1u);
+  lost.update(mt.tracks(), s_to_ns(1.3), 1.0);  // 1.1 s: forgotten
+  EXPECT_TRUE(lost.lost().empty());
+}
+
 TEST(Tracker, TwoTargetsKeepTheirIdentities) {
   TrackerParams tp;
   tp.confirm_hits = 2;

@@ -64,8 +64,18 @@ Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, dou
 // a circle at last_p grown by speed * age_s, at most cap_m. Returned (true) only when it lies within
 // reach of the robot (centre distance <= near_m + grown) and does not already hold the
 // robot (centre distance > grown + robot_radius: a set that holds the robot leaves no arc).
+// keep_holding = true also returns a set that holds the robot (the planner's escape rule,
+// escape_inside_margin, then only forbids arcs that bring the robot nearer its centre).
 bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
-                   double robot_radius, double near_m, CircleObstacle& out);
+                   double robot_radius, double near_m, CircleObstacle& out, bool keep_holding = false);
+
+// Speed to grow a reachable set with [m/s]: the filtered speed, at most (when use_travel_rate) the
+// track's measured travel rate max(0, |last_p - first_p| - noise_m) / life_s. A track whose velocity
+// was filtered from mis-associated fragments or depth noise reads 0.1-0.3 m/s while its measurements
+// stay in place (noise_m: the travel that measurement noise alone explains, e.g. 2 position std);
+// a mover's travel rate is its speed. life_s <= 0 (one measurement): the filtered speed.
+double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate,
+                   double noise_m = 0.0);
 
 // Length of the shortest path for a disc of radius `radius` from start to goal among static
 // circles (their velocities are ignored), or +infinity when none exists. Any-angle search
