@@ -115,8 +115,9 @@ struct DetectParams {
   // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
   double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
                                    // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
-  double seen_through_drop_share = 0.5;  // obstacles with at least this share of their pixels in columns where one
-                                   // nearer obstacle lies above and below them are dropped (session 8; 0 = off)
+  double seen_through_drop_share = 0.0;  // obstacles with at least this share of their pixels in columns where one
+                                   // nearer obstacle lies above and below them are dropped (session 8; 0 = off,
+                                   // the default: 0.5 cost closed-loop safe stops, docs/results-detection.md)
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
   int min_area_px = 200;           // smaller components are dropped

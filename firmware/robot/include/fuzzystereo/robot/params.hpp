@@ -38,9 +38,10 @@ struct TrackerParams {
   int max_misses = 5;               // K: deleted after this many consecutive *visible* misses
   double max_coast_s = 10.0;        // deleted after this long without any measurement [s]
   bool velocity_measurement = true; // z = [p; v] with v the finite difference (eq. 31-32, H = I)
-  double max_speed_mps = 0.5;       // speed gate: fastest obstacle expected; a measurement further
+  double max_speed_mps = 0.0;       // speed gate: fastest obstacle expected; a measurement further
                                     // from the track's last one than this speed (+ noise) allows is
-                                    // not its [m/s]; 0 = off (docs/robot.md; default since session 8)
+                                    // not its [m/s]; 0 = off (docs/robot.md "Session 8": 0.5 measured
+                                    // with the nav8 fields, not the default)
 };
 
 // [planner] — global grid A* + sampled-arc local planner.
@@ -65,9 +66,9 @@ struct PlannerParams {
                                      // time the command reaches the motors (docs/robot.md)
   bool escape_inside_margin = true;  // an obstacle already inside the hard margin at t = 0 blocks
                                      // only arcs that bring the robot closer to it (docs/robot.md)
-  bool transient_not_blocking = true;   // transient circles (a tracked obstacle's possible places)
+  bool transient_not_blocking = false;  // transient circles (a tracked obstacle's possible places)
                                        // are left out of the "blocked" (no path) decision
-  bool ignore_goal_footprint = true;   // obstacles whose inflated disc covers the goal are left out
+  bool ignore_goal_footprint = false;  // obstacles whose inflated disc covers the goal are left out
                                        // of the global search (the local planner still avoids them)
 };
 
