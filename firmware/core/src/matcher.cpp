@@ -66,31 +66,38 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
   MatchResult r;
   StageClock clock(r.timings);
 
+  // Grey-level quantiles of the inputs: read by the noise excess (2c) and the gain trigger (2b).
+  const bool grey_trigger = p.cost.gradient_gain_compensation && p.cost.gradient_gain_trigger == GainTrigger::Grey;
+  GreyQuantiles q_l{}, q_r{};
+  if (p.cost.noise_excess > 0.0 || grey_trigger)
+    detail::run_pair(threads, [&] { q_l = grey_quantiles(left_in); }, [&] { q_r = grey_quantiles(right_in); });
+
   // Noise equalisation (not in the paper, docs/algorithm.md 2c): when one camera is noisier than
-  // the other, both images are smoothed; `left` / `right` feed SLIC and the costs, `grad_in_*` the
+  // the other, both images are smoothed; `left` / `right` feed SLIC and the costs, `gin_*` the
   // gradients (eq. 5). Otherwise all of them are the inputs, untouched.
   ImageU8 smooth_l, smooth_r, gsmooth_l, gsmooth_r;
   const ImageU8 *in_l = &left_in, *in_r = &right_in, *gin_l = &left_in, *gin_r = &right_in;
   if (p.cost.noise_excess > 0.0) {
-    int spread_l = 1, spread_r = 1;
-    detail::run_pair(
-        threads, [&] { r.noise_sigma_left = estimate_noise_sigma(left_in); spread_l = grey_spread(left_in); },
-        [&] { r.noise_sigma_right = estimate_noise_sigma(right_in); spread_r = grey_spread(right_in); });
-    r.noise_excess = noise_excess(r.noise_sigma_left, r.noise_sigma_right, spread_l, spread_r);
+    detail::run_pair(threads, [&] { r.noise_sigma_left = estimate_noise_sigma(left_in); },
+                     [&] { r.noise_sigma_right = estimate_noise_sigma(right_in); });
+    r.noise_excess = noise_excess(r.noise_sigma_left, r.noise_sigma_right, grey_spread(q_l), grey_spread(q_r));
     r.noise_equalised = r.noise_excess > p.cost.noise_excess;
     if (r.noise_equalised) {
-      // The gradient input continues from the image input's passes (binomial passes compose).
+      // Binomial passes compose: the gradient input continues from the image input when it has more passes.
+      auto passes = [](ImageU8 img, int from, int to) {
+        for (int k = from; k < to; ++k) img = binomial_smooth(img);
+        return img;
+      };
+      const int ni = p.cost.noise_image_passes, ng = p.cost.noise_gradient_passes;
       auto smooth = [&](const ImageU8& img, ImageU8& out, ImageU8& gout) {
-        out = img;
-        for (int k = 0; k < p.cost.noise_image_passes; ++k) out = binomial_smooth(out);
-        gout = p.cost.noise_gradient_passes >= p.cost.noise_image_passes ? out : img;
-        for (int k = p.cost.noise_gradient_passes >= p.cost.noise_image_passes ? p.cost.noise_image_passes : 0;
-             k < p.cost.noise_gradient_passes; ++k)
-          gout = binomial_smooth(gout);
+        out = passes(img, 0, ni);
+        gout = ng >= ni ? passes(out, ni, ng) : passes(img, 0, ng);
       };
       detail::run_pair(threads, [&] { smooth(left_in, smooth_l, gsmooth_l); },
                        [&] { smooth(right_in, smooth_r, gsmooth_r); });
       in_l = &smooth_l, in_r = &smooth_r, gin_l = &gsmooth_l, gin_r = &gsmooth_r;
+      if (grey_trigger)  // the gain trigger reads the images the costs see
+        detail::run_pair(threads, [&] { q_l = grey_quantiles(smooth_l); }, [&] { q_r = grey_quantiles(smooth_r); });
     }
   }
   const ImageU8& left = *in_l;
@@ -102,7 +109,7 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
     if (p.cost.gradient_gain_trigger == GainTrigger::Gradient) {
       r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);
     } else {
-      r.grey_quantile_shift = grey_quantile_shift(left, right);
+      r.grey_quantile_shift = grey_quantile_shift(q_l, q_r);
       if (r.grey_quantile_shift > p.cost.gradient_gain_grey_shift)
         r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, 0.0);
     }

@@ -2,6 +2,7 @@
 // outputs, implemented in one folder of firmware/core/src/ and tested against a plain scalar
 // reference in tests/cpp/. matcher.cpp chains them, one line per stage.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -22,12 +23,20 @@ ImageU16 gradient_magnitude(const ImageU8& img);
 // f = round(2^16 * sum_ref / sum_other) (Q16, at most 2^20). Returns f (65536 = unchanged; also for
 // an all-zero image).
 std::uint32_t compensate_gradient_gain(const ImageU16& ref, ImageU16& other, double deadband);
+// The 5 %, 10 %, ..., 95 % grey-level quantiles of an image (quantile p: the smallest level v with
+// 100 * #(<= v) >= p * N, exact integers; all 0 for an empty image). Both camera-difference detectors
+// (2b, 2c) read them, so the matcher computes them once per image and frame.
+using GreyQuantiles = std::array<int, 19>;
+GreyQuantiles grey_quantiles(const ImageU8& img);
+// Mean absolute difference [grey levels] of the two images' quantiles (docs/algorithm.md 2b).
+double grey_quantile_shift(const GreyQuantiles& a, const GreyQuantiles& b);
 double grey_quantile_shift(const ImageU8& a, const ImageU8& b);
 // Noise equalisation (not in the paper; docs/algorithm.md 2c).
 // Robust Immerkaer estimate of the white-noise std [grey levels]: median |N * I| / (6 * 0.67449)
 // with N = [1 -2 1; -2 4 -2; 1 -2 1] over the interior pixels (0 for images under 3 x 3).
 double estimate_noise_sigma(const ImageU8& img);
 // q95 - q5 of the grey levels (at least 1).
+int grey_spread(const GreyQuantiles& q);
 int grey_spread(const ImageU8& img);
 // sqrt(|sigma_l^2 - (sigma_r * spread_l / spread_r)^2|): the noise one image has beyond the
 // other's, at the left image's contrast [grey levels].

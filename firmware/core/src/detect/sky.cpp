@@ -98,8 +98,8 @@ ImageU8 textured_mask(const ImageRgb8& rgb, int rows_limit, int radius, double m
 ImageU8 sky_mask(const ImageRgb8& rgb, const ImageI16& disp, int rows_limit, const DetectParams& p) {
   ImageU8 m(rgb.width, rgb.height, 0);
   const int rows = std::clamp(rows_limit, 0, rgb.height);
-  const ImageU8 tex = textured_mask(rgb, rows, p.sky_texture_radius, p.sky_max_texture);
   const bool check_tex = p.sky_max_texture > 0 && p.sky_texture_radius >= 1;
+  const ImageU8 tex = check_tex ? textured_mask(rgb, rows, p.sky_texture_radius, p.sky_max_texture) : ImageU8();
   const std::int32_t dmax = std::int32_t(p.sky_max_disparity_px * kDispScale + 0.5);
   const bool check_disp = p.sky_max_disparity_px > 0.0;
   for (int y = 0; y < rows; ++y) {

@@ -54,31 +54,40 @@ std::uint32_t compensate_gradient_gain(const ImageU16& ref, ImageU16& other, dou
   return static_cast<std::uint32_t>(f);
 }
 
+GreyQuantiles grey_quantiles(const ImageU8& img) {
+  GreyQuantiles q{};
+  if (img.data.empty()) return q;
+  // Four interleaved histograms: equal neighbouring grey levels would otherwise make every increment
+  // wait for the previous one (store-to-load chain). uint32 counts: < 2^32 / 4 pixels each.
+  std::array<std::uint32_t, 4 * 256> h4{};
+  const std::size_t N = img.data.size();
+  for (std::size_t i = 0; i < N; ++i) ++h4[(i & 3) * 256 + img.data[i]];
+  std::array<std::uint64_t, 256> h{};
+  for (std::size_t v = 0; v < 256; ++v) h[v] = std::uint64_t(h4[v]) + h4[256 + v] + h4[512 + v] + h4[768 + v];
+  const std::uint64_t n = N;
+  std::uint64_t c = 0;
+  int v = 0;
+  for (int k = 0; k < 19; ++k) {
+    const std::uint64_t p = 5 * std::uint64_t(k + 1);  // percent
+    while (v < 256 && 100 * (c + h[std::size_t(v)]) < p * n) c += h[std::size_t(v++)];
+    q[std::size_t(k)] = std::min(v, 255);
+  }
+  return q;
+}
+
 // Mean absolute difference [grey levels] between the 5 %, 10 %, ..., 95 % quantiles of the grey
-// levels of a and b (quantile p: the smallest level v with 100 * #(<= v) >= p * N, exact integers).
-// Two views of one scene share their grey-level distribution up to occlusions and view-dependent
-// content (0.6-11.6 levels on the 27 evaluation pairs); a camera gain or tone curve shifts it
-// (>= 14.2 levels under the gain, gamma and mixed distortions of `eval --radiometric`).
-double grey_quantile_shift(const ImageU8& a, const ImageU8& b) {
-  auto quantiles = [](const ImageU8& img, std::array<int, 19>& q) {
-    std::array<std::uint64_t, 256> h{};
-    for (const std::uint8_t v : img.data) ++h[v];
-    const std::uint64_t n = img.data.size();
-    std::uint64_t c = 0;
-    int v = 0;
-    for (int k = 0; k < 19; ++k) {
-      const std::uint64_t p = 5 * std::uint64_t(k + 1);  // percent
-      while (v < 256 && 100 * (c + h[std::size_t(v)]) < p * n) c += h[std::size_t(v++)];
-      q[std::size_t(k)] = std::min(v, 255);
-    }
-  };
-  if (a.data.empty() || b.data.empty()) return 0.0;
-  std::array<int, 19> qa{}, qb{};
-  quantiles(a, qa);
-  quantiles(b, qb);
+// levels of a and b. Two views of one scene share their grey-level distribution up to occlusions and
+// view-dependent content (0.6-11.6 levels on the 27 evaluation pairs); a camera gain or tone curve
+// shifts it (>= 14.2 levels under the gain, gamma and mixed distortions of `eval --radiometric`).
+double grey_quantile_shift(const GreyQuantiles& qa, const GreyQuantiles& qb) {
   int sum = 0;
   for (std::size_t k = 0; k < qa.size(); ++k) sum += std::abs(qa[k] - qb[k]);
   return sum / 19.0;
+}
+
+double grey_quantile_shift(const ImageU8& a, const ImageU8& b) {
+  if (a.data.empty() || b.data.empty()) return 0.0;
+  return grey_quantile_shift(grey_quantiles(a), grey_quantiles(b));
 }
 
 }  // namespace fs

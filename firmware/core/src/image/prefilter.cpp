@@ -78,24 +78,9 @@ ImageU8 binomial_smooth(const ImageU8& img) {
   return out;
 }
 
-// Grey-level spread: q95 - q5 of the image's grey levels (quantile p: the smallest level v with
-// 100 * #(<= v) >= p * N, exact integers); at least 1.
-int grey_spread(const ImageU8& img) {
-  if (img.data.empty()) return 1;
-  std::array<std::uint32_t, 4 * 256> h4{};  // four interleaved histograms (see estimate_noise_sigma)
-  const std::size_t N = img.data.size();
-  for (std::size_t i = 0; i < N; ++i) ++h4[(i & 3) * 256 + img.data[i]];
-  std::array<std::uint64_t, 256> h{};
-  for (std::size_t v = 0; v < 256; ++v) h[v] = std::uint64_t(h4[v]) + h4[256 + v] + h4[512 + v] + h4[768 + v];
-  const std::uint64_t n = N;
-  auto quantile = [&](std::uint64_t pct) {
-    std::uint64_t c = 0;
-    int v = 0;
-    while (v < 255 && 100 * (c + h[std::size_t(v)]) < pct * n) c += h[std::size_t(v++)];
-    return v;
-  };
-  return std::max(1, quantile(95) - quantile(5));
-}
+// Grey-level spread: q95 - q5 of the image's grey levels (grey_quantiles); at least 1.
+int grey_spread(const GreyQuantiles& q) { return std::max(1, q[18] - q[0]); }
+int grey_spread(const ImageU8& img) { return grey_spread(grey_quantiles(img)); }
 
 // How much noisier the noisier image of the pair is [grey levels of the left image]: the right
 // estimate is first brought to the left's contrast (x spread_l / spread_r, so a camera gain
