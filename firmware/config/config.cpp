@@ -175,6 +175,7 @@ MatcherParams to_params(const Values& v) {
   p.densify.speckle_max_size = i("densify.speckle_max_size");
   p.densify.speckle_max_diff = i("densify.speckle_max_diff");
   p.densify.fill = v.flag("densify.fill");
+  p.densify.interpolate_max_diff = i("densify.interpolate_max_diff");
   p.runtime.threads = i("runtime.threads");
   return p;
 }
@@ -272,7 +273,7 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"
     << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
     << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
-    << "\nfill = " << (p.densify.fill ? "true" : "false") << "\n\n"
+    << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff << "\n\n"
     << "[runtime]\nthreads = " << p.runtime.threads << "\n\n"
     << "[testing]\ninject_shift = " << p.cost.inject_shift << "\n";
   return s.str();

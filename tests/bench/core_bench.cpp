@@ -141,6 +141,16 @@ void BM_Densify(benchmark::State& st) {
 }
 BENCHMARK(BM_Densify)->Unit(benchmark::kMillisecond);
 
+// The plain 8-ray median fill (interpolate_max_diff = 0): the cost of the slant-aware fill.
+void BM_DensifyPlainMedian(benchmark::State& st) {
+  auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  p.densify.interpolate_max_diff = 0;
+  for (auto _ : st) benchmark::DoNotOptimize(fs::densify(r.disp_esr, p.densify, nullptr));
+}
+BENCHMARK(BM_DensifyPlainMedian)->Unit(benchmark::kMillisecond);
+
 void BM_Matcher(benchmark::State& st) {
   const fs::Matcher m(params(), fs::load_fis_definition(""));
   for (auto _ : st) benchmark::DoNotOptimize(m.match(pair().left, pair().right));

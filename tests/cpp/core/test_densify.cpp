@@ -56,7 +56,8 @@ ImageI16 speckles_reference(const ImageI16& d, int max_size, int max_diff_q4) {
   return out;
 }
 
-ImageI16 fill_reference(const ImageI16& d) {
+// interp_q4 > 0: opposite rays within interp_q4 both take their linear interpolation at the pixel.
+ImageI16 fill_reference(const ImageI16& d, int interp_q4 = 0) {
   const int w = d.width, h = d.height;
   const int dirs[8][2] = {{0, 1}, {0, -1}, {1, 0}, {-1, 0}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
   ImageI16 out = d;
@@ -64,19 +65,34 @@ ImageI16 fill_reference(const ImageI16& d) {
     for (int x = 0; x < w; ++x) {
       if (d.at(x, y) != kInvalidDisp) continue;
       std::vector<int> v;
-      int ray[8];
+      int ray[8], steps[8];
       for (int k = 0; k < 8; ++k) {
         ray[k] = kInvalidDisp;
+        steps[k] = 0;
         for (int s = 1;; ++s) {  // walk against the direction
           const int yy = y - s * dirs[k][0], xx = x - s * dirs[k][1];
           if (yy < 0 || yy >= h || xx < 0 || xx >= w) break;
           if (d.at(xx, yy) != kInvalidDisp) {
             ray[k] = d.at(xx, yy);
+            steps[k] = s;
             break;
           }
         }
-        if (ray[k] != kInvalidDisp) v.push_back(ray[k]);
       }
+      int val[8];
+      std::copy(ray, ray + 8, val);
+      if (interp_q4 > 0) {
+        const int pairs[4][2] = {{0, 1}, {2, 3}, {4, 7}, {5, 6}};  // opposite directions
+        for (const auto& pr : pairs) {
+          const int a = pr[0], b = pr[1];
+          if (ray[a] == kInvalidDisp || ray[b] == kInvalidDisp || std::abs(ray[a] - ray[b]) > interp_q4) continue;
+          // the line through (0, ray[a]) and (steps[a] + steps[b], ray[b]) at steps[a], rounded half up
+          const int span = steps[a] + steps[b], num = ray[a] * span + (ray[b] - ray[a]) * steps[a];
+          val[a] = val[b] = (2 * num + span) / (2 * span);
+        }
+      }
+      for (int k = 0; k < 8; ++k)
+        if (ray[k] != kInvalidDisp) v.push_back(val[k]);
       int r = kInvalidDisp;
       if (ray[0] == kInvalidDisp && ray[1] != kInvalidDisp) {
         r = ray[1];
@@ -130,6 +146,46 @@ TEST(Densify, MedianFillMatchesRayWalkReference) {
   detail::use_threads(0);
 }
 
+// The slant-aware fill (interpolate_max_diff) against the same ray walk, 1 and 3 threads.
+TEST(Densify, InterpolatingFillMatchesRayWalkReference) {
+  for (int threads : {1, 3}) {
+    detail::use_threads(threads);
+    for (unsigned seed = 21; seed <= 26; ++seed) {
+      const int w = 43 + 2 * static_cast<int>(seed % 5), h = 25 + 2 * static_cast<int>(seed % 3);
+      for (int pct : {10, 60, 95}) {
+        const ImageI16 d = blocky_disp(w, h, seed * 5 + pct, pct);
+        for (int tq4 : {1, 8 * kDispScale, 64 * kDispScale}) {
+          ASSERT_EQ(median_fill(d, nullptr, tq4).data, fill_reference(d, tq4).data)
+              << "seed " << seed << " invalid " << pct << "% threshold " << tq4 << " threads " << threads;
+        }
+      }
+    }
+  }
+  detail::use_threads(0);
+}
+
+// A band of rows without estimates in a slanted plane (disparity growing down the rows, like a
+// road): the plain median fill puts the mean of the rows above and below into the whole band (a
+// step), the interpolating fill puts the plane.
+TEST(Densify, InterpolationFillsASlantedPlaneExactly) {
+  const int w = 61, h = 21;
+  ImageI16 d(w, h, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) d.at(x, y) = static_cast<std::int16_t>(160 + 16 * y);  // 10 px + 1 px per row
+  for (int y = 5; y <= 15; ++y)
+    for (int x = 0; x < w; ++x) d.at(x, y) = kInvalidDisp;  // rows 5..15: no horizontal ray
+  const ImageI16 plain = median_fill(d, nullptr, 0), slant = median_fill(d, nullptr, 64 * kDispScale);
+  int plain_off = 0;
+  for (int y = 5; y <= 15; ++y)
+    for (int x = 11; x < w - 11; ++x) {  // columns where every diagonal ray meets row 4 or 16
+      EXPECT_EQ(slant.at(x, y), 160 + 16 * y) << x << "," << y;
+      plain_off += std::abs(plain.at(x, y) - (160 + 16 * y)) > 16;
+    }
+  EXPECT_GT(plain_off, 0) << "the plain median fill already follows the slant; the test shows nothing";
+  // Rows 4 and 16 differ by 12 px: with an 8 px threshold nothing is interpolated (= plain).
+  EXPECT_EQ(median_fill(d, nullptr, 8 * kDispScale).data, plain.data);
+}
+
 TEST(Densify, AllInvalidStaysInvalidAndLeftBorderTakesRightNeighbour) {
   ImageI16 none(9, 5, kInvalidDisp);
   EXPECT_EQ(median_fill(none, nullptr).data, none.data);
@@ -157,9 +213,11 @@ TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {
 }
 
 TEST(Densify, ConfigSectionReachesTheParams) {
-  const MatcherParams p = parse_matcher_config("[densify]\nenabled = false\nspeckle_max_size = 7\n", "t.toml");
+  const MatcherParams p = parse_matcher_config("[densify]\nenabled = false\nspeckle_max_size = 7\ninterpolate_max_diff = 3\n", "t.toml");
   EXPECT_FALSE(p.densify.enabled);
   EXPECT_EQ(p.densify.speckle_max_size, 7);
+  EXPECT_EQ(p.densify.interpolate_max_diff, 3);
+  EXPECT_THROW(parse_matcher_config("[densify]\ninterpolate_max_diff = 65\n", "t.toml"), ConfigError);
   EXPECT_THROW(parse_matcher_config("[densify]\nspeckle_max_diff = -1\n", "t.toml"), ConfigError);
 }
 

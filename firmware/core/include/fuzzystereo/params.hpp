@@ -55,6 +55,7 @@ struct DensifyParams {
   int speckle_max_size = 100;  // [px]; components of <= this many pixels are removed, 0 = off
   int speckle_max_diff = 3;    // [px]; neighbours within this belong to one component
   bool fill = true;            // 8-direction median fill of pixels without an estimate
+  int interpolate_max_diff = 8;  // [px]; opposite rays within this are interpolated before the median, 0 = off
 };
 
 struct RuntimeParams {

@@ -156,9 +156,13 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
 // along each of the 8 rays (horizontal, vertical, diagonal) from it (mean of the two middle values,
 // rounded half up, for an even count); in the left border band, where no ray from the left meets
 // an estimate, it takes the nearest estimate to its right. filled (optional) receives 1 per filled pixel.
-ImageI16 median_fill(const ImageI16& disp, ImageU8* filled);
+// interp_max_diff_q4 > 0 (slant-aware fill): before the median, each of the 4 pairs of opposite
+// rays whose two values differ by at most interp_max_diff_q4 (one surface on both sides) gives
+// both its slots the linear interpolation between them, (a*tb + b*ta) / (ta + tb) rounded half
+// up, ta and tb = the steps to each value; 0 = the plain median of the 8 ray values.
+ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_q4 = 0);
 // Q4 value 0 (disparity 0, no match in range) counts as no estimate; then remove_speckles, then
-// median_fill when p.fill. changed (optional): 0 kept, 1 filled, 2 zero or removed
+// median_fill (with p.interpolate_max_diff) when p.fill. changed (optional): 0 kept, 1 filled, 2 zero or removed
 // as a speckle (then filled when p.fill).
 ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed);
 

@@ -6,7 +6,10 @@
    (OpenCV ``filterSpeckles``, the rule the firmware re-implements without OpenCV).
 3. Fill (``fill``): every pixel without an estimate takes the median of the first valid disparity
    met along each of the 8 rays (horizontal, vertical, diagonal) from it; in the left border band,
-   where the ray from the left meets no estimate, the nearest estimate to its right.
+   where the ray from the left meets no estimate, the nearest estimate to its right. With
+   ``interpolate_max_diff`` > 0, each pair of opposite rays whose values differ by at most that
+   many px (one surface on both sides) gives both its members the linear interpolation between
+   them at the pixel before the median (slant-aware fill; docs/algorithm.md 6b).
 Float64 px, NaN = invalid.
 """
 
@@ -32,53 +35,82 @@ def remove_speckles(disp: np.ndarray, max_size: int, max_diff: float) -> tuple[n
     return np.where(removed, np.nan, disp), removed
 
 
-def _ray(disp: np.ndarray, dy: int, dx: int) -> np.ndarray:
+#: pairs of opposite directions in DIRS
+OPPOSITE = ((0, 1), (2, 3), (4, 7), (5, 6))
+
+
+def _ray(disp: np.ndarray, dy: int, dx: int) -> tuple[np.ndarray, np.ndarray]:
+    """(first valid value walking against (dy, dx), the number of steps to it)."""
     h, w = disp.shape
     out = np.full(disp.shape, np.nan)
+    steps = np.zeros(disp.shape)
     if dy == 0:
         prev = np.full(h, np.nan)
+        pt = np.zeros(h)
         for x in range(w) if dx > 0 else range(w - 1, -1, -1):
             v = disp[:, x]
-            prev = np.where(np.isnan(v), prev, v)
+            ok = ~np.isnan(v)
+            prev = np.where(ok, v, prev)
+            pt = np.where(ok, 0.0, pt + 1)
             out[:, x] = prev
-        return out
+            steps[:, x] = pt
+        return out, steps
     prev = np.full(w, np.nan)
+    pt = np.zeros(w)
     for y in range(h) if dy > 0 else range(h - 1, -1, -1):
         shifted = np.full(w, np.nan)
+        st = np.zeros(w)
         if dx > 0:
             shifted[1:] = prev[:-1]
+            st[1:] = pt[:-1]
         elif dx < 0:
             shifted[:-1] = prev[1:]
+            st[:-1] = pt[1:]
         else:
-            shifted = prev
+            shifted, st = prev, pt
         v = disp[y]
-        prev = np.where(np.isnan(v), shifted, v)
+        ok = ~np.isnan(v)
+        prev = np.where(ok, v, shifted)
+        pt = np.where(ok, 0.0, st + 1)
         out[y] = prev
-    return out
+        steps[y] = pt
+    return out, steps
 
 
-def median_fill(disp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def median_fill(disp: np.ndarray, interpolate_max_diff: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(filled map, filled mask)."""
     invalid = np.isnan(disp)
     if not invalid.any() or invalid.all():
         return disp.copy(), np.zeros(disp.shape, dtype=bool)
-    rays = np.stack([_ray(disp, dy, dx) for dy, dx in DIRS])
+    walks = [_ray(disp, dy, dx) for dy, dx in DIRS]
+    rays = np.stack([r for r, _ in walks])
+    values = rays.copy()
+    if interpolate_max_diff > 0:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for a, b in OPPOSITE:
+                (va, ta), (vb, tb) = walks[a], walks[b]
+                ok = ~np.isnan(va) & ~np.isnan(vb) & (np.abs(va - vb) <= interpolate_max_diff)
+                line = (va * tb + vb * ta) / np.where(ok, ta + tb, 1.0)
+                values[a] = np.where(ok, line, values[a])
+                values[b] = np.where(ok, line, values[b])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pixels stay NaN
-        med = np.nanmedian(rays, axis=0)
+        med = np.nanmedian(values, axis=0)
     border = np.isnan(rays[0]) & ~np.isnan(rays[1])
     value = np.where(border, rays[1], med)
     out = np.where(invalid, value, disp)
     return out, invalid & ~np.isnan(out)
 
 
-def densify(disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool) -> tuple[np.ndarray, np.ndarray]:
+def densify(
+    disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool, interpolate_max_diff: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """(final map, changed: 0 kept, 1 filled, 2 zero or removed as a speckle)."""
     if not enabled:
         return disp.copy(), np.zeros(disp.shape, dtype=np.uint8)
     zero = disp == 0
     d = np.where(zero, np.nan, disp)
     d, removed = remove_speckles(d, speckle_max_size, speckle_max_diff)
-    out, filled = median_fill(d) if fill else (d, np.zeros(d.shape, dtype=bool))
+    out, filled = median_fill(d, interpolate_max_diff) if fill else (d, np.zeros(d.shape, dtype=bool))
     changed = np.where(zero | removed, 2, np.where(filled, 1, 0)).astype(np.uint8)
     return out, changed

@@ -1,0 +1,65 @@
+"""The float twin of the densify stage (reference/densify.py) and its slant-aware fill
+(``[densify] interpolate_max_diff``, docs/algorithm.md 6b), alone and against a firmware dump."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from fuzzyctl import dump as dm
+from fuzzyctl.reference.densify import densify, median_fill
+
+
+def _slanted_band(w: int = 61, h: int = 21) -> tuple[np.ndarray, np.ndarray]:
+    """A plane whose disparity grows 1 px per row (a road), rows 5..15 without estimates."""
+    plane = np.repeat((10.0 + np.arange(h, dtype=float))[:, None], w, axis=1)
+    holes = plane.copy()
+    holes[5:16] = np.nan
+    return plane, holes
+
+
+def test_interpolating_fill_puts_the_plane_into_a_band_of_holes():
+    plane, holes = _slanted_band()
+    inner = (slice(5, 16), slice(11, 50))  # columns where every diagonal ray meets row 4 or 16
+    slant, filled = median_fill(holes, interpolate_max_diff=64.0)
+    assert filled[5:16].all()
+    np.testing.assert_allclose(slant[inner], plane[inner], atol=1e-9)
+    plain, _ = median_fill(holes, interpolate_max_diff=0.0)
+    assert np.abs(plain[inner] - plane[inner]).max() >= 4.0  # the median puts a step there
+    # rows 4 and 16 differ by 12 px: an 8 px threshold interpolates nothing
+    np.testing.assert_array_equal(median_fill(holes, interpolate_max_diff=8.0)[0], plain)
+
+
+def test_densify_passes_the_threshold_to_the_fill():
+    plane, holes = _slanted_band()
+    out, changed = densify(holes, True, 0, 3.0, True, interpolate_max_diff=64.0)
+    np.testing.assert_allclose(out[5:16, 11:50], plane[5:16, 11:50], atol=1e-9)
+    assert (changed[5:16] == 1).all() and (changed[:5] == 0).all()
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_root, tmp_path):
+    # KITTI 2015 000046 at half size: a road, slanted in disparity, with holes after eq. (13).
+    k = datasets_root / "kitti2015" / "training"
+    left, right = k / "image_2" / "000046_10.png", k / "image_3" / "000046_10.png"
+    if not left.is_file() or not right.is_file():
+        pytest.skip(f"{left} or {right} not found")
+    proc = subprocess.run([str(firmware_bin), "match", "--left", str(left), "--right", str(right), "--downscale", "2",
+                           "--max-disparity", "80", "--out", str(tmp_path / "fw"), "--dump"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    d = dm.read_dump(tmp_path / "fw")
+    esr, final = d.disp("disp_esr"), d.disp("disp_final")
+    holes = np.isnan(np.where(esr == 0, np.nan, esr))
+    assert holes.mean() > 0.2, "too few holes for the check to mean anything"
+
+    def agreement(threshold: float) -> float:
+        twin, _ = densify(esr, True, 100, 3.0, True, interpolate_max_diff=threshold)
+        ok = ~np.isnan(twin) & ~np.isnan(final)
+        return float(np.mean(np.abs(twin[ok] - final[ok])[holes[ok]] <= 1.0 / 16 + 1e-9))
+
+    # the firmware rounds each interpolation to Q4; the twin does not
+    assert agreement(8.0) >= 0.995
+    assert agreement(0.0) < agreement(8.0) - 0.02  # the default fill is the interpolating one
