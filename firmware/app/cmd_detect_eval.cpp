@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -227,6 +228,19 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
 // carries [densify] at its defaults with enabled = false (the settings the ESR maps are independent of).
 constexpr const char* kCacheMap = "esr";
 
+// The recorded matcher config without its [densify] section: the ESR maps do not depend on it, so a
+// cache made before a [densify] field existed (or with other [densify] values) stays valid.
+std::string without_densify_section(const std::string& toml) {
+  std::istringstream in(toml);
+  std::string line, out;
+  bool skip = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.front() == '[') skip = line.rfind("[densify]", 0) == 0;
+    if (!skip) out += line + "\n";
+  }
+  return out;
+}
+
 void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml) {
   stdfs::create_directories(dir);
   const stdfs::path mp = dir / "disparity_map.txt";
@@ -246,9 +260,9 @@ void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml)
   if (stdfs::exists(p)) {
     std::ifstream f(p);
     const std::string have((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    if (have != matcher_toml)
+    if (without_densify_section(have) != without_densify_section(matcher_toml))
       throw UserError("--disparity-cache '" + dir.string() + "' was made with a different matcher config (" + p.string() +
-                      "); use another directory or delete it");
+                      "; [densify] is not compared); use another directory or delete it");
     return;
   }
   std::ofstream f(p);

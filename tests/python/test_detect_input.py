@@ -89,6 +89,23 @@ def test_detect_eval_dense_through_the_cache(firmware_bin, dataset, tmp_path):
     assert json.loads(js2.read_text())["input"] == "esr" and "ESR (sparse)" in p.stdout
 
 
+def test_cache_ignores_densify_but_not_the_matcher(firmware_bin, dataset, tmp_path):
+    # The cache holds ESR maps, which [densify] does not change: a cache whose recorded [densify]
+    # differs (e.g. made before a [densify] field existed) is used; one whose [cost] differs is refused.
+    cache = tmp_path / "cache"
+    args = ("detect-eval", "--dataset", dataset, "--disparity-cache", cache, "--max-disparity", "32", "--limit", "1")
+    assert run(firmware_bin, *args).returncode == 0
+    mc = cache / "matcher_config.toml"
+    text = mc.read_text()
+    assert "\ninterpolate_max_diff = " in text
+    mc.write_text(text.replace("\ninterpolate_max_diff = ", "\nold_densify_field = "))
+    p = run(firmware_bin, *args)
+    assert p.returncode == 0, p.stderr
+    mc.write_text(text.replace("\nalpha = ", "\nalpha = 0.9\nwas_alpha = "))
+    p = run(firmware_bin, *args)
+    assert p.returncode == 2 and "different matcher config" in p.stderr, (p.stdout, p.stderr)
+
+
 def test_cache_holding_another_map_is_refused(firmware_bin, dataset, tmp_path):
     cache = tmp_path / "cache"
     cache.mkdir()
