@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <memory>
 #include <vector>
 
 #include "fuzzystereo/stages.hpp"
@@ -87,6 +88,23 @@ constexpr std::array<std::array<int, 2>, 19> kSort8{{{0, 2}, {1, 3}, {4, 6}, {5,
                                                      {0, 1}, {2, 3}, {4, 5}, {6, 7}, {2, 4}, {3, 5}, {1, 4}, {3, 6},
                                                      {1, 2}, {3, 4}, {5, 6}}};
 
+// One interior row of a ray plane with a vertical step: o[x] = s[x] valid ? s[x] : prev[x - dx] (and its
+// step count t[x] = 0 : tprev[x - dx] + 1) for x in [x_lo, x_hi). Restrict-qualified so it vectorises.
+void ray_row(const std::int16_t* __restrict s, const std::int16_t* __restrict prev, std::int16_t* __restrict o,
+             int x_lo, int x_hi, int dx) {
+  for (int x = x_lo; x < x_hi; ++x) {
+    const std::int16_t v = s[x], p = prev[x - dx];  // both loaded: a select, not a branch
+    o[x] = v != kInvalidDisp ? v : p;
+  }
+}
+void step_row(const std::int16_t* __restrict s, const std::int16_t* __restrict tprev, std::int16_t* __restrict t,
+              int x_lo, int x_hi, int dx) {
+  for (int x = x_lo; x < x_hi; ++x) {
+    const std::int16_t v = s[x], p = static_cast<std::int16_t>(tprev[x - dx] + 1);
+    t[x] = v != kInvalidDisp ? std::int16_t(0) : p;
+  }
+}
+
 // One ray plane: nearest valid value met walking against (dy, dx), kNone if none. dist (optional):
 // the number of steps to that value (0 on a valid pixel; undefined where the value is kNone).
 void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out, std::int16_t* dist) {
@@ -128,16 +146,42 @@ void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out, std::int16_t
       // outside the image has none.
       const int x_lo = std::max(0, dx), x_hi = std::min(w, w + dx);
       for (int x = 0; x < x_lo; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
-      for (int x = x_lo; x < x_hi; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : prev_row[x - dx];
+      ray_row(s, prev_row, o, x_lo, x_hi, dx);
       for (int x = x_hi; x < w; ++x) o[x] = s[x] != kInvalidDisp ? s[x] : kNone;
       if (t) {
         for (int x = 0; x < x_lo; ++x) t[x] = 0;
-        for (int x = x_lo; x < x_hi; ++x) t[x] = s[x] != kInvalidDisp ? std::int16_t(0) : static_cast<std::int16_t>(prev_dist[x - dx] + 1);
+        step_row(s, prev_dist, t, x_lo, x_hi, dx);
         for (int x = x_hi; x < w; ++x) t[x] = 0;
       }
     }
     prev_row = o;
     prev_dist = t;
+  }
+}
+
+// Slant-aware fill, one pair of opposite rays over the m gathered pixels: where the two values are
+// on one surface (within max_diff_q4) both take the linear interpolation at the pixel,
+// (a*tb + b*ta) / (ta + tb) rounded half up (Q4): q = floor(M / d), M = 2 (a*tb + b*ta) + s,
+// d = 2 s, s = ta + tb. Bounds: a, b < 2^12 (Q4 of a disparity < 256), ta, tb < 2^15, so M < 2^31
+// (int32). No integer division (it was most of the fill's cost): q0 = trunc(M / d) in float has
+// a relative error <= 2^-23 (M rounded, then one correctly rounded division), so for q < 2^12 it
+// is off by at most 1, and one correction step each way makes it exact. Every load is
+// unconditional and the test uses & (not &&), so the loop vectorises (AVX2 clone on x86-64: SSE2
+// has no 32-bit multiply).
+FS_TARGET_CLONES
+void interpolate_pair(std::int16_t* __restrict a, std::int16_t* __restrict b, const std::int16_t* __restrict ta,
+                      const std::int16_t* __restrict tb, int m, int max_diff_q4) {
+  for (int i = 0; i < m; ++i) {
+    const std::int32_t va = a[i], vb = b[i], ra = ta[i], rb = tb[i];
+    const std::int32_t diff = va - vb;
+    const bool ok = (va != kNone) & (vb != kNone) & (diff <= max_diff_q4) & (-diff <= max_diff_q4);
+    const std::int32_t wa = ok ? ra : 0, wb = ok ? rb : 0, sum = ok ? wa + wb : 1, d = 2 * sum;
+    const std::int32_t M = 2 * ((ok ? va : 0) * wb + (ok ? vb : 0) * wa) + sum;
+    std::int32_t q = static_cast<std::int32_t>(static_cast<float>(M) / static_cast<float>(d));
+    q = (q + 1) * d <= M ? q + 1 : q;
+    q = q * d > M ? q - 1 : q;
+    a[i] = static_cast<std::int16_t>(ok ? q : va);
+    b[i] = static_cast<std::int16_t>(ok ? q : vb);
   }
 }
 
@@ -159,18 +203,23 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
   const std::size_t n = static_cast<std::size_t>(w) * h, uw = static_cast<std::size_t>(w);
   // Planes j = 0..5 hold the rays kDirs[j + 2] (dy = +1 for kDirs 2, 4, 5; dy = -1 for 3, 6, 7).
   const bool interp = interp_max_diff_q4 > 0;
-  std::vector<std::int16_t> rays(6 * n), steps(interp ? 6 * n : 0);  // steps: int16, w and h < 32768
+  // Every element is written by scan_ray, so the planes are not zero-filled first (std::vector
+  // would: ~1 ms per KITTI frame). steps: int16, w and h < 32768.
+  const std::unique_ptr<std::int16_t[]> rays_buf(new std::int16_t[6 * n]);
+  const std::unique_ptr<std::int16_t[]> steps_buf(interp ? new std::int16_t[6 * n] : nullptr);
+  std::int16_t* const rays = rays_buf.get();
+  std::int16_t* const steps = steps_buf.get();
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (int j = 0; j < 6; ++j)
-    scan_ray(disp, kDirs[std::size_t(j) + 2][0], kDirs[std::size_t(j) + 2][1], rays.data() + std::size_t(j) * n,
-             interp ? steps.data() + std::size_t(j) * n : nullptr);
+    scan_ray(disp, kDirs[std::size_t(j) + 2][0], kDirs[std::size_t(j) + 2][1], rays + std::size_t(j) * n,
+             interp ? steps + std::size_t(j) * n : nullptr);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel
 #endif
   {
-    std::vector<std::int16_t> horiz(2 * uw), c(8 * uw), hsteps(interp ? 2 * uw : 0);
+    std::vector<std::int16_t> horiz(2 * uw), c(8 * uw), hsteps(interp ? 2 * uw : 0), tg(interp ? 8 * uw : 0);
     std::vector<std::int32_t> idx(uw);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(static)
@@ -206,35 +255,29 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
         idx[std::size_t(m++)] = x;
       }
       if (m == 0) continue;
-      const std::int16_t* planes[8] = {from_left,         from_right,        rays.data() + row,
-                                       rays.data() + n + row, rays.data() + 2 * n + row, rays.data() + 3 * n + row,
-                                       rays.data() + 4 * n + row, rays.data() + 5 * n + row};
+      const std::int16_t* planes[8] = {from_left,         from_right,        rays + row,
+                                       rays + n + row, rays + 2 * n + row, rays + 3 * n + row,
+                                       rays + 4 * n + row, rays + 5 * n + row};
       std::int16_t* cc[8];
       for (int k = 0; k < 8; ++k) {
         cc[k] = c.data() + std::size_t(k) * uw;
         for (int i = 0; i < m; ++i) cc[k][i] = planes[k][idx[std::size_t(i)]];
       }
       if (interp) {
-        // Opposite rays on one surface (values within interp_max_diff_q4): both slots take the
-        // linear interpolation at the pixel, (a*tb + b*ta) / (ta + tb) rounded half up (Q4, int32:
-        // a, b < 2^15 and ta + tb < 2^16). Scalar with a skip: a branch-free version with the
-        // division in double was slower (fs_core_bench BM_Densify 16.7 -> 26.8 ms).
-        const std::int16_t* tplanes[8] = {hsteps.data(), hsteps.data() + uw, steps.data() + row, steps.data() + n + row,
-                                          steps.data() + 2 * n + row, steps.data() + 3 * n + row,
-                                          steps.data() + 4 * n + row, steps.data() + 5 * n + row};
+        // Opposite rays on one surface: both slots take their interpolation (interpolate_pair).
+        const std::int16_t* tplanes[8] = {hsteps.data(), hsteps.data() + uw, steps + row, steps + n + row,
+                                          steps + 2 * n + row, steps + 3 * n + row,
+                                          steps + 4 * n + row, steps + 5 * n + row};
+        for (int k = 0; k < 8; ++k) {
+          std::int16_t* g = tg.data() + std::size_t(k) * uw;
+          for (int i = 0; i < m; ++i) g[i] = tplanes[k][idx[std::size_t(i)]];
+        }
         for (const auto& pr : kOpposite) {
-          std::int16_t* a = cc[pr[0]];
-          std::int16_t* b = cc[pr[1]];
-          const std::int16_t* ta = tplanes[pr[0]];
-          const std::int16_t* tb = tplanes[pr[1]];
-          for (int i = 0; i < m; ++i) {
-            if (a[i] == kNone || b[i] == kNone || std::abs(a[i] - b[i]) > interp_max_diff_q4) continue;
-            const std::size_t x = static_cast<std::size_t>(idx[std::size_t(i)]);
-            const std::int32_t wa = ta[x], wb = tb[x], sum = wa + wb;
-            const auto v = static_cast<std::int16_t>((std::int32_t(a[i]) * wb + std::int32_t(b[i]) * wa + sum / 2) / sum);
-            a[i] = v;
-            b[i] = v;
-          }
+          std::int16_t* __restrict a = cc[pr[0]];
+          std::int16_t* __restrict b = cc[pr[1]];
+          const std::int16_t* __restrict ta = tg.data() + std::size_t(pr[0]) * uw;
+          const std::int16_t* __restrict tb = tg.data() + std::size_t(pr[1]) * uw;
+          interpolate_pair(a, b, ta, tb, m, interp_max_diff_q4);
         }
       }
       for (const auto& e : kSort8) {
