@@ -186,6 +186,31 @@ TEST(Densify, InterpolationFillsASlantedPlaneExactly) {
   EXPECT_EQ(median_fill(d, nullptr, 8 * kDispScale).data, plain.data);
 }
 
+// The interpolation's float quotient with its correction steps is the exact integer rounding even
+// at the largest values and step counts: one row with estimates only at both ends, so every pixel
+// between takes the left/right interpolation. The cases (a, b, steps to a, steps to b at the
+// pixel checked) were found by a search where trunc(float(M) / float(d)) is one below (first three)
+// or one above (last three) floor(M / d), so each correction step is needed.
+TEST(Densify, InterpolationIsExactForLongRaysAndLargeValues) {
+  struct Case {
+    int a, b, ta, tb;
+  };
+  const Case cases[] = {{3023, 3196, 13695, 13695}, {3635, 4020, 6929, 19097}, {3668, 4095, 10630, 19134},
+                        {2032, 2591, 1961, 9639},   {3452, 4001, 8969, 10455}, {2085, 2544, 6892, 2537}};
+  for (const Case& c : cases) {
+    const int w = c.ta + c.tb + 1;
+    ImageI16 row(w, 1, kInvalidDisp);
+    row.at(0, 0) = static_cast<std::int16_t>(c.a);
+    row.at(w - 1, 0) = static_cast<std::int16_t>(c.b);
+    const ImageI16 f = median_fill(row, nullptr, 64 * kDispScale);
+    for (int x = 1; x < w - 1; ++x) {
+      const std::int64_t ta = x, tb = w - 1 - x, span = ta + tb;
+      const std::int64_t num = std::int64_t(c.a) * tb + std::int64_t(c.b) * ta;
+      ASSERT_EQ(f.at(x, 0), (2 * num + span) / (2 * span)) << "x " << x << " a " << c.a << " b " << c.b;
+    }
+  }
+}
+
 TEST(Densify, AllInvalidStaysInvalidAndLeftBorderTakesRightNeighbour) {
   ImageI16 none(9, 5, kInvalidDisp);
   EXPECT_EQ(median_fill(none, nullptr).data, none.data);
