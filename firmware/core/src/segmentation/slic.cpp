@@ -124,6 +124,7 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
                     static_cast<std::int32_t>(c.x), static_cast<std::int32_t>(c.y), static_cast<std::uint32_t>(S2),
                     static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
     }
+    if (it + 1 == p.iterations) break;  // the labels are final; the last centre update is not needed
     // Update centres (integer rounded means). Unreached pixels (-1) keep no centre. Per row, a run
     // of equal labels adds its position sums in closed form and its grey values from the row's
     // prefix sums (the same integer sums as pixel by pixel).
