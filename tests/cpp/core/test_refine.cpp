@@ -58,6 +58,28 @@ TEST(Wta, PicksTheBestFisScoreAmongCandidates) {
   }
 }
 
+// paint_segments (row-wise table read through the labels) against painting the runs segment by
+// segment, on SLIC segmentations of odd-sized textured images with some segments left unassigned.
+TEST(Wta, PaintMatchesRunWiseReference) {
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    const int w = 53 + 4 * static_cast<int>(seed), h = 31 + 2 * static_cast<int>(seed);
+    SegmentationParams sp;
+    sp.region_size = 6;
+    const Segmentation seg = slic_segment(test::texture_image(w, h, seed), sp);
+    std::mt19937 rng(seed);
+    std::uniform_int_distribution<int> ud(-1, 40 * kDispScale);
+    std::vector<std::int16_t> disp(std::size_t(seg.count));
+    for (auto& d : disp) d = static_cast<std::int16_t>(ud(rng));  // -1 (and other < 0) = no disparity
+    ImageI16 ref(w, h, kInvalidDisp);
+    for (int sgm = 0; sgm < seg.count; ++sgm)
+      for (std::int32_t r = seg.run_begin[std::size_t(sgm)]; r < seg.run_begin[std::size_t(sgm) + 1]; ++r) {
+        const fs::Run& run = seg.runs[std::size_t(r)];
+        for (int x = run.x0; x < run.x1; ++x) ref.at(x, run.y) = disp[std::size_t(sgm)] < 0 ? kInvalidDisp : disp[std::size_t(sgm)];
+      }
+    ASSERT_EQ(paint_segments(seg, disp).data, ref.data) << "seed " << seed;
+  }
+}
+
 TEST(LrCheck, MatchesScalarReference) {
   const ImageI16 l = random_disp(53, 19, 12, 1u, 5, 4), r = random_disp(53, 19, 12, 2u, 5, 4);
   for (int tol : {0, 1, 3}) {
