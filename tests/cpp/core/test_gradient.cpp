@@ -43,6 +43,26 @@ TEST(Gradient, MatchesScalarReferenceOnOddSizes) {
   }
 }
 
+// gradient_magnitude rounds sqrt in float (it vectorises twice as wide as double): for every
+// possible v = gx^2 + gy^2 of 8-bit images (0 .. 2 * 1020^2) the float result must equal the exact
+// round-half-up r(v) = floor(sqrt(v) + 1/2). Both are non-decreasing in v (a correctly rounded sqrt
+// is monotone), so they agree everywhere when they agree on both sides of every step of r(v):
+// r steps from k - 1 to k at the smallest v with 4 v >= (2k - 1)^2.
+TEST(Gradient, FloatSqrtRoundsExactlyOverTheWholeRange) {
+  const std::int64_t vmax = 2 * 1020 * 1020;
+  auto f = [](std::int64_t v) { return static_cast<std::int64_t>(std::sqrt(static_cast<float>(v)) + 0.5f); };
+  EXPECT_EQ(f(0), 0);
+  for (std::int64_t k = 1;; ++k) {
+    const std::int64_t b = ((2 * k - 1) * (2 * k - 1) + 3) / 4;  // ceil((2k - 1)^2 / 4)
+    if (b > vmax) {
+      EXPECT_EQ(f(vmax), k - 1);
+      break;
+    }
+    EXPECT_EQ(f(b), k) << "v " << b;
+    EXPECT_EQ(f(b - 1), k - 1) << "v " << b - 1;
+  }
+}
+
 TEST(Gradient, MaximumIsBounded) {
   ImageU8 img(8, 8, 0);
   for (int y = 0; y < 8; ++y)
