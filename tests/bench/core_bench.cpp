@@ -116,6 +116,14 @@ void BM_WtaLeft(benchmark::State& st) {
 }
 BENCHMARK(BM_WtaLeft)->Unit(benchmark::kMillisecond);
 
+void BM_LrCheck(benchmark::State& st) {
+  const fs::Matcher m(params(), fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  fs::ImageU8 mask;
+  for (auto _ : st) benchmark::DoNotOptimize(fs::left_right_check(r.disp_left_wta, r.disp_right_wta, params().lr, &mask));
+}
+BENCHMARK(BM_LrCheck)->Unit(benchmark::kMillisecond);
+
 void BM_Esr(benchmark::State& st) {
   const auto p = params();
   const fs::Matcher m(p, fs::load_fis_definition(""));
