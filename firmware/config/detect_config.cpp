@@ -77,6 +77,7 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.split_rounds = v.integer("detect.split_rounds");
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
+  p.merge_gap_vertical_px = v.integer("detect.merge_gap_vertical_px");
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
   p.merge_group_max_rel = v.num("detect.merge_group_max_rel");
   p.merge_attach = v.flag("detect.merge_attach");

@@ -166,6 +166,19 @@ def test_occluded_obstacle_merges_across_nearer_one():
     assert len(set(refdet.merge_occluded(comp2, d, 3, roots, 8, 0.1, 200, 10)[1:].tolist())) == 3
 
 
+def test_vertical_gap_joins_a_post_cut_in_height():
+    # As tests/cpp/core/test_detect_scene.cpp VerticalGapJoinsAPostCutInHeight: a post in two
+    # stacked pieces 12 rows apart and two side-by-side pieces 12 columns apart, all at 20 px.
+    comp = np.zeros((70, 100), np.int64)
+    d = np.full((70, 100), np.nan)
+    for (x0, x1, y0, y1, lab) in [(10, 19, 5, 24, 1), (10, 19, 37, 59, 2), (50, 59, 20, 59, 3), (72, 81, 20, 59, 4)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = 20.0
+    assert len(set(refdet.merge_fragments(comp, d, 4, 8, 0.1, gap_vertical=8)[1:].tolist())) == 4
+    r = refdet.merge_fragments(comp, d, 4, 8, 0.1, gap_vertical=16)
+    assert r[1] == r[2] and len({r[1], r[3], r[4]}) == 3
+
+
 def test_contained_groups_join_or_drop():
     # As tests/cpp/core/test_detect_scene.cpp ContainedGroupsJoinOrDrop: an obstacle at 20 px with a
     # 15 %-nearer piece (200 px), a nearer 100-px blob and a farther 100-px blob inside its box.

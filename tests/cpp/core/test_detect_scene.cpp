@@ -291,6 +291,36 @@ TEST(DetectScene, FragmentsMergeAndLowBoxesDrop) {
   EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, calib, p, nullptr).size(), 2u);
 }
 
+TEST(DetectScene, VerticalGapJoinsAPostCutInHeight) {
+  // A post (10 px wide) in two pieces at d = 20 px, rows 5-24 and 37-59 (a 12-px band without
+  // disparities between them), and beside it a second post of the same depth whose pieces stand
+  // side by side 12 px apart. merge_gap_vertical_px = 16 joins the stacked pieces only.
+  ImageI32 comp(100, 70, 0);
+  ImageI16 disp(100, 70, kInvalidDisp);
+  for (int x = 10; x < 20; ++x) {
+    for (int y = 5; y < 25; ++y) comp.at(x, y) = 1, disp.at(x, y) = 320;
+    for (int y = 37; y < 60; ++y) comp.at(x, y) = 2, disp.at(x, y) = 320;
+  }
+  for (int y = 20; y < 60; ++y)
+    for (int x = 0; x < 10; ++x) comp.at(50 + x, y) = 3, comp.at(72 + x, y) = 4, disp.at(50 + x, y) = 320, disp.at(72 + x, y) = 320;
+  const StereoCalib calib{200.0, 50.0, 35.0, 0.1, 0.5, 0.0};
+  DetectParams p;
+  p.min_area_px = 10;
+  p.min_area_m2 = 0.0;
+  p.min_height_m = 0.0;
+  p.merge_gap_px = 8;
+  p.merge_edge_rel_disparity = 0.0;
+  p.merge_occluded_max_gap_px = 0;
+  p.merge_gap_vertical_px = 8;  // 12 px > 8 both ways: four pieces
+  EXPECT_EQ(detect::measure_obstacles(comp, 4, disp, calib, p, nullptr).size(), 4u);
+  p.merge_gap_vertical_px = 16;  // the stacked pieces join; the side-by-side ones stay apart
+  const auto o = detect::measure_obstacles(comp, 4, disp, calib, p, nullptr);
+  ASSERT_EQ(o.size(), 3u);
+  int tall = 0;
+  for (const auto& b : o) tall += b.x0 == 10 && b.y0 == 5 && b.y1 == 59;
+  EXPECT_EQ(tall, 1);
+}
+
 TEST(DetectScene, PhysicalAreaDropsSmallSurfacesAtTheirDepth) {
   // The same 20x20 = 400-px patch at d = 20 px (Z = 1 m at f = 200 px, B = 0.1 m: 400 * (1/200)^2
   // = 0.01 m^2) and at d = 4 px (Z = 5 m: 0.25 m^2). A pixel-count limit cannot tell them apart.

@@ -82,6 +82,7 @@ struct DetectParams {
   double cc_max_rel_step = 0.05;   // ... and by <= this share of the larger disparity (0 = off)
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
+  int merge_gap_vertical_px = 8;  // ... in y: the vertical growth, max(this, merge_gap_px) (tall obstacles cut in height)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
   double merge_group_max_rel = 0.0;   // complete linkage: a merged group's member medians span <= this share of the
                                    // largest (session 8; 0 = single linkage, no group limit: the default,

@@ -55,7 +55,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     return c;
   };
   if (p.merge_gap_px >= 0 && p.merge_max_rel_disparity > 0) {
-    const int g = p.merge_gap_px;
+    const int g = p.merge_gap_px, gv = std::max(p.merge_gap_px, p.merge_gap_vertical_px);
     struct Pair {
       std::int64_t num, den;  // |m1 - m2| / max(m1, m2) as an exact fraction (order of the complete linkage)
       int c1, c2;
@@ -66,7 +66,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
       if (a.n == 0) continue;
       for (int c2 = c1 + 1; c2 <= count; ++c2) {
         const Acc& b = acc[std::size_t(c2)];
-        if (b.n == 0 || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + g || a.y0 > b.y1 + g) continue;
+        if (b.n == 0 || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + gv || a.y0 > b.y1 + gv) continue;
         const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
         if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
         if (p.merge_group_max_rel <= 0) {  // single linkage (the pairs' order does not matter)

@@ -420,8 +420,9 @@ def _group_stats(comp: np.ndarray, disp: np.ndarray, roots: np.ndarray):
 
 
 def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float, group_rel: float = 0.0,
-                    attach: bool = False) -> np.ndarray:
-    """Component -> group root (smallest label): boxes grown by `gap` overlap and the medians differ
+                    attach: bool = False, gap_vertical: int = 0) -> np.ndarray:
+    """Component -> group root (smallest label): boxes grown by `gap` (in y by max(gap, gap_vertical),
+    session 9) overlap and the medians differ
     by <= rel of the larger (the firmware uses the lower median of Q4 values). group_rel <= 0: single
     linkage. group_rel > 0 (session 8): complete linkage, closest pairs first, two groups join only when all
     their members' medians span <= group_rel of the largest; then, with `attach`, each group joins the
@@ -437,8 +438,10 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
             box[c] = (xs.min(), ys.min(), xs.max(), ys.max())
             med[c] = float(np.median(disp[ys, xs]))
 
-    def touch(a, b):
-        return not (b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gap or a[1] > b[3] + gap)
+    gv = max(gap, gap_vertical)
+
+    def touch(a, b, gy=gv):
+        return not (b[0] > a[2] + gap or a[0] > b[2] + gap or b[1] > a[3] + gy or a[1] > b[3] + gy)
 
     cs = sorted(box)
     pairs = []
@@ -474,7 +477,7 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
     for g1 in gbox:
         best = None
         for g2 in gbox:
-            if g2 == g1 or gcnt[g2] <= gcnt[g1] or not touch(gbox[g1], gbox[g2]):
+            if g2 == g1 or gcnt[g2] <= gcnt[g1] or not touch(gbox[g1], gbox[g2], gap):  # attach: merge_gap_px both ways
                 continue
             if abs(gmed[g1] - gmed[g2]) > rel * max(gmed[g1], gmed[g2]) + 1e-9:
                 continue
@@ -825,7 +828,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
                             int(p.split_rounds))
     roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
-                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)))
+                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)),
+                            int(getattr(p, "merge_gap_vertical_px", 0)))
     roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
                         int(p.merge_edge_columns))
     roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
