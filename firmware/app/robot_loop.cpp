@@ -90,7 +90,7 @@ StageStat stat_of(std::vector<double> v) {
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
-      look_before_turn_m, blocked_scan_reset_m;
+      look_before_turn_m;
   int moving_min_hits, static_track_cells;
   bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
 };
@@ -115,7 +115,6 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.reach_holding_robot = v.flag("loop.reach_holding_robot");
   p.look_before_turn_m = v.num("loop.look_before_turn_m");
   p.look_live_tracks = v.flag("loop.look_live_tracks");
-  p.blocked_scan_reset_m = v.num("loop.blocked_scan_reset_m");
   return p;
 }
 
@@ -414,7 +413,6 @@ LoopResult RobotLoop::run() {
   robot::CameraScan scan;
   std::vector<robot::ObstacleMeasurement> meas;
   double scan_turned_rad = 0;
-  Vec2 scan_origin = start.pos();  // where the last blocked scan began ([loop] blocked_scan_reset_m)
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
   // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
@@ -659,8 +657,8 @@ LoopResult RobotLoop::run() {
     if (plan.status == robot::PlanStatus::kReached) want = {};
     // Sensing action ([loop] look_before_turn_m; docs/robot.md "Look before turning"): before an arc
     // turns towards the side where a mover's confirmed track that the tracker deleted (it had
-    // travelled: the loop's moving test, no static support; with look_live_tracks also any live
-    // mover-like track) was last measured, out of the view and near the robot, turn on the spot
+    // travelled: the loop's moving test, no static support; with look_live_tracks any live or
+    // deleted mover-like track, travelled or not) was last measured, out of the view and near the robot, turn on the spot
     // until that point is well inside the view (|bearing| < half_fov / 2, at most 3 s). Once per
     // track. A deleted track leaves the plan altogether, so the robot knows nothing of that side.
     // (Seed 11, scenario 92: the mover's track was deleted 0.7 m beside the robot; the robot drove a
@@ -681,8 +679,8 @@ LoopResult RobotLoop::run() {
         if (!tr.confirmed || std::find(looked_ids.begin(), looked_ids.end(), tr.id) != looked_ids.end()) return;
         const double age_s = robot::ns_to_s(now_ns - tr.last_meas_ns);
         if (age_s > lp.moving_max_age_s || robot::norm(tr.vel()) < lp.moving_speed_mps) return;
-        if (lost) {
-          // It had travelled (the moving test above, without the direction test).
+        if (lost && !lp.look_live_tracks) {
+          // It had travelled (the loop's moving test above, without the direction test).
           const double dist = robot::norm(tr.last_meas_p - tr.first_meas_p);
           const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
           if (tr.hits < lp.moving_min_hits || dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return;
@@ -721,19 +719,13 @@ LoopResult RobotLoop::run() {
       // for a disc robot) before declaring the goal unreachable — a way out may lie outside the
       // camera's view.
       if (scan_turned_rad < 2.0 * M_PI) {
-        if (scan_turned_rad == 0) scan_origin = pose.pos();
         want = {0.0, kScanYawRate};
         scan_turned_rad += std::fabs(mixer.last().omega) * I.pp.control_period_s;
       } else {
         want = {};
       }
     } else {
-      // A path again: the next "blocked" turns once more — unless (blocked_scan_reset_m > 0) the
-      // robot is still within that distance of where the last scan began: from there the scan has
-      // already looked all round, and a path that flickers open for a frame or two (a transient
-      // circle, a map cell lowered) would otherwise restart the 5 s turn each time (seed 11, b1:
-      // three restarted scans in the last 11 s of a ring round the goal, timeout at 60 s).
-      if (robot::blocked_scan_restarts(pose.pos(), scan_origin, lp.blocked_scan_reset_m)) scan_turned_rad = 0;
+      scan_turned_rad = 0;
       if (lp.look_before_turn_m > 0 && plan.status == robot::PlanStatus::kMoving) want = sensing_action(want);
     }
     want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);

@@ -368,10 +368,6 @@ bool look_before_turn(const Pose2D& pose, const BodyTwist& cmd, Vec2 last_p, dou
   return true;
 }
 
-bool blocked_scan_restarts(Vec2 robot_pos, Vec2 scan_origin, double reset_m) {
-  return reset_m <= 0.0 || norm(robot_pos - scan_origin) > reset_m;
-}
-
 double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate,
                    double noise_m) {
   if (!use_travel_rate || !(life_s > 0.0)) return filtered_speed;

@@ -112,14 +112,6 @@ TEST(Planner, LookBeforeTurningTowardsALostMover) {
   EXPECT_EQ(look.omega, -1.2);
 }
 
-// The blocked look-around restarts after a path only once the robot has left the place of the last
-// turn; reset_m = 0 keeps the old rule (any path restarts it).
-TEST(Planner, BlockedScanRestartsOnlyAwayFromTheLastTurn) {
-  EXPECT_TRUE(blocked_scan_restarts({2.59, 1.64}, {2.74, 1.74}, 0.0));
-  EXPECT_FALSE(blocked_scan_restarts({2.59, 1.64}, {2.74, 1.74}, 0.5));  // 0.18 m: seen from there
-  EXPECT_TRUE(blocked_scan_restarts({3.40, 1.74}, {2.74, 1.74}, 0.5));   // 0.66 m: a new place
-}
-
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {
   EXPECT_NEAR(shortest_path_length({}, {0, 0}, {3, 4}, 0.2), 5.0, 1e-9);
 }

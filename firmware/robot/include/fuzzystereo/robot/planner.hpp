@@ -81,12 +81,6 @@ bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap
 bool look_before_turn(const Pose2D& pose, const BodyTwist& cmd, Vec2 last_p, double half_fov_rad, double near_m,
                       double yaw_rate, BodyTwist& look);
 
-// The loop's look-around when the planner finds no path ([loop] blocked_scan_reset_m): after a
-// path was found again, does the next "blocked" need a new full turn? Yes when reset_m <= 0 (the
-// old rule) or the robot is farther than reset_m from where the last turn began (it has seen the
-// new place's surroundings only from elsewhere); no when it is still near there.
-bool blocked_scan_restarts(Vec2 robot_pos, Vec2 scan_origin, double reset_m);
-
 // Speed to grow a reachable set with [m/s]: the filtered speed, at most (when use_travel_rate) the
 // track's measured travel rate max(0, |last_p - first_p| - noise_m) / life_s. A track whose velocity
 // was filtered from mis-associated fragments or depth noise reads 0.1-0.3 m/s while its measurements
