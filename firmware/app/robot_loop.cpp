@@ -91,7 +91,7 @@ struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m;
-  int moving_min_hits, static_track_cells;
+  int moving_min_hits, static_track_cells, look_min_hits;
   bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
@@ -115,6 +115,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.reach_holding_robot = v.flag("loop.reach_holding_robot");
   p.look_before_turn_m = v.num("loop.look_before_turn_m");
   p.look_live_tracks = v.flag("loop.look_live_tracks");
+  p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
   return p;
 }
 
@@ -683,7 +684,7 @@ LoopResult RobotLoop::run() {
           // It had travelled (the loop's moving test above, without the direction test).
           const double dist = robot::norm(tr.last_meas_p - tr.first_meas_p);
           const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
-          if (tr.hits < lp.moving_min_hits || dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return;
+          if (tr.hits < std::max(lp.moving_min_hits, lp.look_min_hits) || dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return;
         }
         BodyTwist look;
         if (!robot::look_before_turn(pose, cmd, tr.last_meas_p, half_fov - 0.05, lp.look_before_turn_m, kScanYawRate, look))
