@@ -89,9 +89,10 @@ StageStat stat_of(std::vector<double> v) {
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
-      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas;
-  int moving_min_hits, static_track_cells;
-  bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot;
+      near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
+      look_before_turn_m;
+  int moving_min_hits, static_track_cells, look_min_hits;
+  bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -112,6 +113,9 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.reach_travel_noise_sigmas = v.num("loop.reach_travel_noise_sigmas");
   p.reach_lost_tracks = v.flag("loop.reach_lost_tracks");
   p.reach_holding_robot = v.flag("loop.reach_holding_robot");
+  p.look_before_turn_m = v.num("loop.look_before_turn_m");
+  p.look_live_tracks = v.flag("loop.look_live_tracks");
+  p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
   return p;
 }
 
@@ -217,6 +221,7 @@ json LoopResult::to_json() const {
          {"path_ratio", (shortest_m > 0 && std::isfinite(shortest_m)) ? path_m / shortest_m : 0.0},
          {"min_clearance_m", min_clearance_m},
          {"front_stops", front_stops},
+         {"look_turns", look_turns},
          {"blocked_frames", blocked_frames},
          {"watchdog_trips", watchdog_trips},
          {"fps_wall", fps_wall}};
@@ -338,7 +343,7 @@ LoopResult RobotLoop::run() {
   const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
-  robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks)
+  robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks, look_before_turn_m)
   const robot::Planner planner(I.pp, I.rp);
   robot::DiffDriveMixer mixer(I.rp);
   robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
@@ -411,6 +416,12 @@ LoopResult RobotLoop::run() {
   double scan_turned_rad = 0;
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
+  // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
+  // measured, since when; tracks already looked for (each at most once).
+  int look_id = 0;
+  Vec2 look_p;
+  std::int64_t look_t0_ns = 0;
+  std::vector<int> looked_ids;
   double wl_prev = 0, wr_prev = 0;
   const int blocked_frames_to_stop = std::max(3, static_cast<int>(std::lround(3.0 / I.pp.control_period_s)));
   const auto wall_start = std::chrono::steady_clock::now();
@@ -517,7 +528,7 @@ LoopResult RobotLoop::run() {
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, visible);
-    if (lp.reach_lost_tracks) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
+    if (lp.reach_lost_tracks || lp.look_before_turn_m > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
     // ---- plan ----
@@ -645,6 +656,59 @@ LoopResult RobotLoop::run() {
     const bool ahead = robot::obstacle_in_front(plan_pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;
     if (plan.status == robot::PlanStatus::kReached) want = {};
+    // Sensing action ([loop] look_before_turn_m; docs/robot.md "Look before turning"): before an arc
+    // turns towards the side where a mover's confirmed track that the tracker deleted (it had
+    // travelled: the loop's moving test, no static support; with look_live_tracks any live or
+    // deleted mover-like track, travelled or not) was last measured, out of the view and near the robot, turn on the spot
+    // until that point is well inside the view (|bearing| < half_fov / 2, at most 3 s). Once per
+    // track. A deleted track leaves the plan altogether, so the robot knows nothing of that side.
+    // (Seed 11, scenario 92: the mover's track was deleted 0.7 m beside the robot; the robot drove a
+    // left arc into it.)
+    const auto sensing_action = [&](BodyTwist cmd) {
+      const std::int64_t now_ns = t_frame - t0;
+      if (look_id != 0) {
+        const Vec2 d = look_p - pose.pos();
+        const double b = robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw);
+        if (std::fabs(b) >= 0.5 * half_fov && now_ns - look_t0_ns < robot::s_to_ns(3.0))
+          return BodyTwist{0.0, b > 0 ? kScanYawRate : -kScanYawRate};
+        looked_ids.push_back(look_id);
+        look_id = 0;
+      }
+      BodyTwist best_look{};
+      double best_d = std::numeric_limits<double>::infinity();
+      const auto consider = [&](const robot::Track& tr, bool lost) {
+        if (!tr.confirmed || std::find(looked_ids.begin(), looked_ids.end(), tr.id) != looked_ids.end()) return;
+        const double age_s = robot::ns_to_s(now_ns - tr.last_meas_ns);
+        if (age_s > lp.moving_max_age_s || robot::norm(tr.vel()) < lp.moving_speed_mps) return;
+        if (lost && !lp.look_live_tracks) {
+          // It had travelled (the loop's moving test above, without the direction test).
+          const double dist = robot::norm(tr.last_meas_p - tr.first_meas_p);
+          const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
+          if (tr.hits < std::max(lp.moving_min_hits, lp.look_min_hits) || dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return;
+        }
+        BodyTwist look;
+        if (!robot::look_before_turn(pose, cmd, tr.last_meas_p, half_fov - 0.05, lp.look_before_turn_m, kScanYawRate, look))
+          return;
+        if (lp.static_track_cells > 0 &&
+            world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells)
+          return;  // a static obstacle's track: the map holds it
+        const double dist = robot::norm(tr.last_meas_p - pose.pos());
+        if (dist < best_d) {
+          best_d = dist;
+          best_look = look;
+          look_id = tr.id;
+          look_p = tr.last_meas_p;
+        }
+      };
+      if (lp.look_live_tracks)
+        for (const auto& tr : tracker.tracks()) consider(tr, false);
+      for (const auto& tr : lost_tracks.lost()) consider(tr, true);
+      if (look_id == 0) return cmd;
+      look_t0_ns = now_ns;
+      ++res.look_turns;
+      return best_look;
+    };
     if (look_around_turned < 2.0 * M_PI) {
       // First look around once before driving: the camera sees 74-100 deg, and an obstacle beside the
       // start would otherwise be unknown until the robot turns into it.
@@ -663,6 +727,7 @@ LoopResult RobotLoop::run() {
       }
     } else {
       scan_turned_rad = 0;
+      if (lp.look_before_turn_m > 0 && plan.status == robot::PlanStatus::kMoving) want = sensing_action(want);
     }
     want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;

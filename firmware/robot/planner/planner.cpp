@@ -357,6 +357,17 @@ bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap
   return true;
 }
 
+bool look_before_turn(const Pose2D& pose, const BodyTwist& cmd, Vec2 last_p, double half_fov_rad, double near_m,
+                      double yaw_rate, BodyTwist& look) {
+  if (cmd.v <= 0.02 || std::fabs(cmd.omega) <= 0.1) return false;
+  const Vec2 d = last_p - pose.pos();
+  if (norm(d) > near_m) return false;
+  const double bearing = wrap_angle(std::atan2(d.y, d.x) - pose.yaw);
+  if (std::fabs(bearing) < half_fov_rad || bearing * cmd.omega <= 0.0) return false;
+  look = {0.0, bearing > 0.0 ? yaw_rate : -yaw_rate};
+  return true;
+}
+
 double reach_speed(double filtered_speed, Vec2 first_p, Vec2 last_p, double life_s, bool use_travel_rate,
                    double noise_m) {
   if (!use_travel_rate || !(life_s > 0.0)) return filtered_speed;

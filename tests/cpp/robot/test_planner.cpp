@@ -86,6 +86,32 @@ TEST(Planner, ReachSpeedIsAtMostTheTravelRate) {
   EXPECT_NEAR(reach_speed(0.3, {2.0, 0.0}, {3.0, 0.0}, 4.0, true, 0.28), 0.72 / 4.0, 1e-12);
 }
 
+// Sensing action: a mover's track last measured beside the robot, outside a +-50 deg view. A left
+// arc (omega > 0) towards it becomes a left turn on the spot; an arc away from it, a straight drive,
+// a turn on the spot, a point inside the view or beyond near_m change nothing.
+TEST(Planner, LookBeforeTurningTowardsALostMover) {
+  const double half_fov = 50.0 * M_PI / 180.0;
+  const Pose2D pose{1.0, 2.0, M_PI / 2};  // facing +y
+  const Vec2 left_beside{0.3, 2.2};       // 0.73 m away, bearing ~ 74 deg to the left (seed 11, 92)
+  BodyTwist look{9.0, 9.0};
+  ASSERT_TRUE(look_before_turn(pose, {0.2, 0.5}, left_beside, half_fov, 1.5, 1.2, look));
+  EXPECT_EQ(look.v, 0.0);
+  EXPECT_EQ(look.omega, 1.2);
+  const BodyTwist untouched{9.0, 9.0};
+  look = untouched;
+  EXPECT_FALSE(look_before_turn(pose, {0.2, -0.5}, left_beside, half_fov, 1.5, 1.2, look));  // turning away
+  EXPECT_FALSE(look_before_turn(pose, {0.2, 0.05}, left_beside, half_fov, 1.5, 1.2, look));  // ~straight
+  EXPECT_FALSE(look_before_turn(pose, {0.0, 0.8}, left_beside, half_fov, 1.5, 1.2, look));   // on the spot
+  EXPECT_FALSE(look_before_turn(pose, {0.2, 0.5}, {0.8, 3.0}, half_fov, 1.5, 1.2, look));    // in view (11 deg)
+  EXPECT_FALSE(look_before_turn(pose, {0.2, 0.5}, {-1.0, 2.2}, half_fov, 1.5, 1.2, look));   // 2 m: too far
+  EXPECT_EQ(look.v, 9.0);
+  EXPECT_EQ(look.omega, 9.0);
+  // Behind on the right (bearing -150 deg), right arc: turn right on the spot.
+  ASSERT_TRUE(look_before_turn(pose, {0.3, -0.4}, {1.5, 1.134}, half_fov, 1.5, 1.2, look));
+  EXPECT_EQ(look.v, 0.0);
+  EXPECT_EQ(look.omega, -1.2);
+}
+
 TEST(ShortestPath, FreeSpaceIsTheStraightLine) {
   EXPECT_NEAR(shortest_path_length({}, {0, 0}, {3, 4}, 0.2), 5.0, 1e-9);
 }

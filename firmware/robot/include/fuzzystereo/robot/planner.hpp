@@ -69,6 +69,18 @@ Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, dou
 bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
                    double robot_radius, double near_m, CircleObstacle& out, bool keep_holding = false);
 
+// Sensing action before a turn ([loop] look_before_turn_m; docs/robot.md "Look before turning").
+// The camera sees +-half_fov_rad about the heading; a mover whose track was last measured at
+// `last_p` outside that view may stand beside the robot, where nothing of it is in the map. When
+// `cmd` drives forward (v > 0.02 m/s) on an arc that turns towards that side (|omega| > 0.1 rad/s,
+// omega of the sign of last_p's bearing) and last_p lies within near_m of the robot and outside
+// the view, the robot should first turn on the spot to look there: returns true and sets `look` =
+// (0, +-yaw_rate) towards last_p. Otherwise false (`look` untouched). The loop ends the action
+// when last_p's bearing is inside the view. (Seed 11, scenario 92: a mover's track deleted 0.7 m
+// beside the robot at 60-95 deg; the robot drove a left arc into it.)
+bool look_before_turn(const Pose2D& pose, const BodyTwist& cmd, Vec2 last_p, double half_fov_rad, double near_m,
+                      double yaw_rate, BodyTwist& look);
+
 // Speed to grow a reachable set with [m/s]: the filtered speed, at most (when use_travel_rate) the
 // track's measured travel rate max(0, |last_p - first_p| - noise_m) / life_s. A track whose velocity
 // was filtered from mis-associated fragments or depth noise reads 0.1-0.3 m/s while its measurements
