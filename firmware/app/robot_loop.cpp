@@ -411,6 +411,21 @@ LoopResult RobotLoop::run() {
   Pose2D true_pose = start, last_true = start;
   int blocked_run = 0;
   robot::ObstacleMap world_map;
+  // Static support of a track (see the planning step below): the map cells within its radius + 5 cm
+  // of its last measured position occupied since static_track_lag_s before its first measurement.
+  const auto support_cells = [&](const robot::Track& tr) {
+    return world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                     tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s));
+  };
+  const auto static_support = [&](const robot::Track& tr) {
+    return lp.static_track_cells > 0 && support_cells(tr) >= lp.static_track_cells;
+  };
+  // Speed to grow a track's reachable set with (robot::reach_speed, [loop] reach_travel_rate).
+  const auto reach_speed_of = [&](const robot::Track& tr, double filtered_speed) {
+    return robot::reach_speed(filtered_speed, tr.first_meas_p, tr.last_meas_p,
+                              robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
+                              lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
+  };
   robot::CameraScan scan;
   std::vector<robot::ObstacleMeasurement> meas;
   double scan_turned_rad = 0;
@@ -555,10 +570,7 @@ LoopResult RobotLoop::run() {
         // gives no mover; with static_track_keep_circles it may still give a near-track circle or a
         // reachable set (zero velocity), otherwise nothing. (Seed 11: these tracks closed the gaps of
         // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
-        const bool supported =
-            lp.static_track_cells > 0 &&
-            world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells;
+        const bool supported = static_support(tr);
         if (supported && !lp.static_track_keep_circles) continue;
         const auto moving = [&] {
           if (supported) return false;
@@ -601,9 +613,7 @@ LoopResult RobotLoop::run() {
             // that holds the robot is kept for a track without static support (a mover's: the robot
             // may then only move away from where it was last seen; seed 11, scenario 92).
             CircleObstacle reach;
-            const double speed = robot::reach_speed(robot::norm(o.vel), tr.first_meas_p, tr.last_meas_p,
-                                                    robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
-                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
+            const double speed = reach_speed_of(tr, robot::norm(o.vel));
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;
@@ -624,15 +634,9 @@ LoopResult RobotLoop::run() {
           const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
           if (age_s <= lp.near_track_max_age_s || age_s > lp.moving_max_age_s) continue;
           if (robot::norm(tr.vel()) < lp.moving_speed_mps || visible(tr.last_meas_p)) continue;
-          const bool supported =
-              lp.static_track_cells > 0 &&
-              world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                        tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells;
-          if (supported) continue;
+          if (static_support(tr)) continue;
           CircleObstacle reach;
-          const double speed = robot::reach_speed(robot::norm(tr.vel()), tr.first_meas_p, tr.last_meas_p,
-                                                  robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns), lp.reach_travel_rate,
-                                                    lp.reach_travel_noise_sigmas * std::sqrt(tr.last_meas_var));
+          const double speed = reach_speed_of(tr, robot::norm(tr.vel()));
           if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                    I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot)) {
             reach.transient = true;
@@ -689,10 +693,7 @@ LoopResult RobotLoop::run() {
         BodyTwist look;
         if (!robot::look_before_turn(pose, cmd, tr.last_meas_p, half_fov - 0.05, lp.look_before_turn_m, kScanYawRate, look))
           return;
-        if (lp.static_track_cells > 0 &&
-            world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s)) >= lp.static_track_cells)
-          return;  // a static obstacle's track: the map holds it
+        if (static_support(tr)) return;  // a static obstacle's track: the map holds it
         const double dist = robot::norm(tr.last_meas_p - pose.pos());
         if (dist < best_d) {
           best_d = dist;
@@ -871,8 +872,7 @@ LoopResult RobotLoop::run() {
                      {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
                      {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
-                     {"support", world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                                           tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s))}});
+                     {"support", support_cells(tr)}});
     fj["tracks"] = std::move(trs);
     json sm;
     for (const auto& [k, v] : stage_ms) sm[k] = v.back();

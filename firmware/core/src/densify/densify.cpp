@@ -105,28 +105,20 @@ void step_row(const std::int16_t* __restrict s, const std::int16_t* __restrict t
   }
 }
 
-// One ray plane: nearest valid value met walking against (dy, dx), kNone if none. dist (optional):
-// the number of steps to that value (0 on a valid pixel; undefined where the value is kNone).
+// One ray plane: nearest valid value met walking against (dy, dx), kNone if none. dist (optional,
+// rays with a vertical step; median_fill keeps the two horizontal rays in row buffers): the number
+// of steps to that value (0 on a valid pixel; undefined where the value is kNone).
 void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out, std::int16_t* dist) {
   const int w = d.width, h = d.height;
   if (dy == 0) {
     for (int y = 0; y < h; ++y) {
       const std::int16_t* s = d.row(y);
       std::int16_t* o = out + static_cast<std::size_t>(y) * w;
-      std::int16_t* t = dist ? dist + static_cast<std::size_t>(y) * w : nullptr;
-      std::int16_t prev = kNone, pt = 0;
+      std::int16_t prev = kNone;
       if (dx > 0) {
-        for (int x = 0; x < w; ++x) {
-          const bool ok = s[x] != kInvalidDisp;
-          o[x] = prev = ok ? s[x] : prev;
-          if (t) t[x] = pt = ok ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
-        }
+        for (int x = 0; x < w; ++x) o[x] = prev = (s[x] != kInvalidDisp ? s[x] : prev);
       } else {
-        for (int x = w - 1; x >= 0; --x) {
-          const bool ok = s[x] != kInvalidDisp;
-          o[x] = prev = ok ? s[x] : prev;
-          if (t) t[x] = pt = ok ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
-        }
+        for (int x = w - 1; x >= 0; --x) o[x] = prev = (s[x] != kInvalidDisp ? s[x] : prev);
       }
     }
     return;
@@ -229,15 +221,21 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
       std::int16_t* from_left = horiz.data();
       std::int16_t* from_right = horiz.data() + uw;
       std::int16_t prev = kNone;
-      for (int x = 0; x < w; ++x) from_left[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
+      // The two horizontal rays (and, for the slant-aware fill, their step counts).
+      std::int16_t* left_steps = hsteps.data();
+      std::int16_t* right_steps = hsteps.data() + (interp ? uw : 0);
+      std::int16_t pt = 0;
+      for (int x = 0; x < w; ++x) {
+        const bool ok = src[x] != kInvalidDisp;
+        from_left[x] = prev = ok ? src[x] : prev;
+        if (interp) left_steps[x] = pt = ok ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
+      }
       prev = kNone;
-      for (int x = w - 1; x >= 0; --x) from_right[x] = prev = (src[x] != kInvalidDisp ? src[x] : prev);
-      if (interp) {
-        std::int16_t pt = 0;
-        for (int x = 0; x < w; ++x) hsteps[std::size_t(x)] = pt = src[x] != kInvalidDisp ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
-        pt = 0;
-        for (int x = w - 1; x >= 0; --x)
-          hsteps[uw + std::size_t(x)] = pt = src[x] != kInvalidDisp ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
+      pt = 0;
+      for (int x = w - 1; x >= 0; --x) {
+        const bool ok = src[x] != kInvalidDisp;
+        from_right[x] = prev = ok ? src[x] : prev;
+        if (interp) right_steps[x] = pt = ok ? std::int16_t(0) : static_cast<std::int16_t>(pt + 1);
       }
       // Gather the pixels without an estimate (the left border band takes its own rule).
       const std::size_t row = static_cast<std::size_t>(y) * uw;
@@ -265,7 +263,7 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
       }
       if (interp) {
         // Opposite rays on one surface: both slots take their interpolation (interpolate_pair).
-        const std::int16_t* tplanes[8] = {hsteps.data(), hsteps.data() + uw, steps + row, steps + n + row,
+        const std::int16_t* tplanes[8] = {left_steps, right_steps, steps + row, steps + n + row,
                                           steps + 2 * n + row, steps + 3 * n + row,
                                           steps + 4 * n + row, steps + 5 * n + row};
         for (int k = 0; k < 8; ++k) {

@@ -11,15 +11,12 @@ namespace fs {
 
 namespace {
 constexpr std::uint64_t kMaxGradient = 1443;  // largest 3x3 Sobel magnitude of 8-bit images
-}  // namespace
-
-namespace {
 
 // |grad| of one pixel from its 3x3 neighbourhood columns xl, x, xr of rows up, mid, dn.
 // v = gx^2 + gy^2 <= 2 * 1020^2 < 2^24 is exact in float, and sqrtf(v) + 0.5f truncated equals the
-// exact round-half-up of sqrt(v) for every such v (checked exhaustively for all 0 .. 2 * 1020^2
-// against the double result; sqrt(v) is never within 1e-4 of a half-integer there), so the float
-// form, which vectorises twice as wide, gives the same integers (tested against isqrt).
+// exact round-half-up of sqrt(v) for every such v (Gradient.FloatSqrtRoundsExactlyOverTheWholeRange
+// checks both sides of every rounding step), so the float form, which vectorises twice as wide,
+// gives the same integers as the double one.
 inline std::uint16_t sobel_at(const std::uint8_t* up, const std::uint8_t* mid, const std::uint8_t* dn, int xl, int x, int xr) {
   const int gx = (up[xr] - up[xl]) + 2 * (mid[xr] - mid[xl]) + (dn[xr] - dn[xl]);
   const int gy = (dn[xl] - up[xl]) + 2 * (dn[x] - up[x]) + (dn[xr] - up[xr]);

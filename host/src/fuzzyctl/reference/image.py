@@ -66,19 +66,23 @@ def compensate_gradient_gain(ref: np.ndarray, other: np.ndarray, deadband: float
     return np.minimum(1443.0, np.floor(other * ratio + 0.5)), ratio
 
 
+def grey_quantiles(img: np.ndarray) -> np.ndarray:
+    """The 5 %, 10 %, ..., 95 % grey-level quantiles of an 8-bit image (quantile p: the smallest
+    level v with 100 * #(<= v) >= p * N), twin of the firmware's ``grey_quantiles`` (exact); all 0
+    for an empty image."""
+    if img.size == 0:
+        return np.zeros(19, dtype=np.int64)
+    c = np.cumsum(np.bincount(img.ravel(), minlength=256)).astype(np.int64)
+    return np.array([min(int(np.searchsorted(100 * c, p * img.size)), 255) for p in range(5, 100, 5)])
+
+
 def grey_quantile_shift(a: np.ndarray, b: np.ndarray) -> float:
-    """Mean absolute difference [grey levels] of the 5 %, 10 %, ..., 95 % grey-level quantiles of
-    two 8-bit images (quantile p: the smallest level v with 100 * #(<= v) >= p * N), twin of the
-    firmware's ``grey_quantile_shift`` (exact: integers). Decides the gradient gain compensation
-    under ``gradient_gain_trigger = "grey"`` (docs/algorithm.md 2b)."""
+    """Mean absolute difference [grey levels] of the grey-level quantiles of two 8-bit images, twin
+    of the firmware's ``grey_quantile_shift`` (exact: integers). Decides the gradient gain
+    compensation under ``gradient_gain_trigger = "grey"`` (docs/algorithm.md 2b)."""
     if a.size == 0 or b.size == 0:
         return 0.0
-
-    def quantiles(img: np.ndarray) -> np.ndarray:
-        c = np.cumsum(np.bincount(img.ravel(), minlength=256)).astype(np.int64)
-        return np.array([min(int(np.searchsorted(100 * c, p * img.size)), 255) for p in range(5, 100, 5)])
-
-    return float(np.abs(quantiles(a) - quantiles(b)).sum()) / 19.0
+    return float(np.abs(grey_quantiles(a) - grey_quantiles(b)).sum()) / 19.0
 
 
 def estimate_noise_sigma(img: np.ndarray) -> float:
@@ -111,17 +115,10 @@ def binomial_smooth(img: np.ndarray) -> np.ndarray:
     return ((s + 8) >> 4).astype(np.uint8)
 
 
-
 def grey_spread(img: np.ndarray) -> int:
     """q95 - q5 of the grey levels (at least 1), twin of the firmware's ``grey_spread`` (exact)."""
-    if img.size == 0:
-        return 1
-    c = np.cumsum(np.bincount(img.ravel(), minlength=256)).astype(np.int64)
-
-    def q(p: int) -> int:
-        return min(int(np.searchsorted(100 * c, p * img.size)), 255)
-
-    return max(1, q(95) - q(5))
+    q = grey_quantiles(img)
+    return max(1, int(q[18] - q[0]))
 
 
 def noise_excess(sigma_l: float, sigma_r: float, spread_l: int, spread_r: int) -> float:
