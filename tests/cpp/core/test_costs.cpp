@@ -143,7 +143,10 @@ void expect_same(const SegmentCosts& a, const SegmentCosts& b) {
 
 TEST(SegmentCosts, BitExactAgainstScalarReference) {
   for (auto [w, h, D, K, dir] : {std::tuple{61, 29, 16, 4, +1}, {61, 29, 16, 4, -1}, {37, 13, 9, 0, +1},
-                                 {45, 21, 23, 0, -1}, {33, 9, 40, 6, +1}}) {
+                                 {45, 21, 23, 0, -1}, {33, 9, 40, 6, +1},
+                                 // K = 8 with D >= 4K: the 16-lane residue maxima of top_k_threshold
+                                 // (D = 70: four full rows and a tail of 6; D = 37: one row and 21)
+                                 {83, 19, 70, 8, +1}, {59, 17, 37, 8, -1}}) {
     const ImageU8 l = test::texture_image(w, h, 21u), r = test::texture_image(w, h, 22u);
     const ImageU16 gl = gradient_magnitude(l), gr = gradient_magnitude(r);
     SegmentationParams sp;
@@ -194,8 +197,8 @@ TEST(SegmentCosts, OversizedSegmentsUseTheExactWidePath) {
 }
 
 // The widest image the Matcher accepts at the largest D, partner rows all 255: the row prefix sums
-// of the squared grey values come within 0.02 % of their int32 bound (W + D <= 33023 partners of
-// 65025; an overflow would fail here, and under UBSan in the asan preset).
+// of the squared grey values pass 2^31 (W + D + 31 = 33054 partners of 65025); they are modular
+// uint32, so the differences stay exact (a wrong wrap would fail here, a signed one under UBSan).
 TEST(SegmentCosts, WidestRowsAtLargestRange) {
   const int w = kMaxImageWidth, h = 1;
   ImageU8 l(w, h), r(w, h);

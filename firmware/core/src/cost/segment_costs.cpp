@@ -50,14 +50,16 @@ struct PartnerRows {
   std::vector<std::uint16_t> val;       // O: grey value (0..255)
   std::vector<std::int16_t> grad;       // gradient magnitude (0..1443)
   std::vector<std::uint8_t> bin;        // NMI bin of the grey value
-  int pre_stride = 0;                   // W + D
-  std::vector<std::int32_t> pre, pre2;  // row prefix sums of O and O^2 over the first W + D - 1
-                                        // partners (the block padding is not summed):
-                                        // <= (W + D) * 65025 < 2^31 for W + D <= 33000
+  int pre_stride = 0;                    // = stride + 1: pre[j] = sum of O[0 .. j)
+  std::vector<std::uint32_t> pre, pre2;  // row prefix sums of O and O^2 over every partner, the
+                                         // block padding included, modulo 2^32: a difference
+                                         // pre[hi] - pre[lo] (uint32) is exact while the true sum
+                                         // is < 2^32, whatever the row length
 };
 
 // D is the number of disparities searched (with the test-only shift). The rows hold D + kBlock
 // partners per pixel, so a block of kBlock disparities starting at any d0 < D reads inside the row.
+FS_TARGET_CLONES
 void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& other_grad, int direction, int D, int bins) {
   const int w = other.width, h = other.height;
   p.stride = w + D + kBlock - 1;
@@ -65,7 +67,7 @@ void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& ot
   p.val.resize(n);
   p.grad.resize(n);
   p.bin.resize(n);
-  p.pre_stride = w + D;
+  p.pre_stride = p.stride + 1;
   p.pre.resize(std::size_t(h) * std::size_t(p.pre_stride));
   p.pre2.resize(p.pre.size());
   for (int y = 0; y < h; ++y) {
@@ -74,20 +76,27 @@ void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& ot
     std::uint16_t* v = p.val.data() + std::size_t(y) * std::size_t(p.stride);
     std::int16_t* g = p.grad.data() + std::size_t(y) * std::size_t(p.stride);
     std::uint8_t* b = p.bin.data() + std::size_t(y) * std::size_t(p.stride);
-    for (int j = 0; j < p.stride; ++j) {
-      // left reference: O[j] = other[W-1-j] (clamped at 0); right reference: O[j] = other[min(j, W-1)]
-      const int x = direction > 0 ? std::max(0, w - 1 - j) : std::min(j, w - 1);
+    // left reference: O[j] = other[W-1-j] (clamped at 0); right reference: O[j] = other[min(j, W-1)].
+    // The first W partners are the row (reversed or not), the rest repeat its border pixel: two
+    // branch-free loops that vectorise.
+    const int edge = direction > 0 ? 0 : w - 1;
+    for (int j = 0; j < w; ++j) {
+      const int x = direction > 0 ? w - 1 - j : j;
       v[j] = src[x];
       g[j] = static_cast<std::int16_t>(gsrc[x]);
-      b[j] = static_cast<std::uint8_t>((src[x] * bins) >> 8);
     }
-    std::int32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.pre_stride);
-    std::int32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.pre_stride);
-    std::int32_t acc = 0, acc2 = 0;  // running sums in registers (no store-to-load chain)
+    for (int j = w; j < p.stride; ++j) {
+      v[j] = src[edge];
+      g[j] = static_cast<std::int16_t>(gsrc[edge]);
+    }
+    for (int j = 0; j < p.stride; ++j) b[j] = static_cast<std::uint8_t>((v[j] * bins) >> 8);
+    std::uint32_t* pr = p.pre.data() + std::size_t(y) * std::size_t(p.pre_stride);
+    std::uint32_t* pr2 = p.pre2.data() + std::size_t(y) * std::size_t(p.pre_stride);
+    std::uint32_t acc = 0, acc2 = 0;  // running sums in registers (no store-to-load chain)
     pr[0] = pr2[0] = 0;
     for (int j = 0; j + 1 < p.pre_stride; ++j) {
       acc += v[j];
-      acc2 += v[j] * v[j];
+      acc2 += std::uint32_t(v[j]) * v[j];
       pr[j + 1] = acc;
       pr2[j + 1] = acc2;
     }
@@ -173,14 +182,47 @@ void nmi_group_sums(const SegPixel* __restrict px, std::size_t n, const std::uin
   sum_ty[0] = y0; sum_ty[1] = y1; sum_ty[2] = y2; sum_ty[3] = y3;
 }
 
-// Partner-only sums of one run for all d, from the row prefix sums: O[lo + d .. hi + d).
-FS_TARGET_CLONES
-void accumulate_run(const std::int32_t* __restrict pre, const std::int32_t* __restrict pre2, int lo, int hi,
-                    std::int32_t* __restrict sr, std::int32_t* __restrict srr, int D) {
-  for (int d = 0; d < D; ++d) {
-    sr[d] += pre[hi + d] - pre[lo + d];
-    srr[d] += pre2[hi + d] - pre2[lo + d];
+// Partner-only sums of a segment for all d, from the row prefix sums: run i covers O[lo + d ..
+// hi + d) of its row. Register-blocked like accumulate_block: per block of kBlock disparities one
+// pass over the run list keeps the 2*kBlock accumulators in registers. The last block's lanes
+// beyond D read the padding partners (inside the row) and are not stored. uint32 (modular) lanes:
+// each real lane is exact while its sum is < 2^32 (the caller passes at most kFlushPixels pixels:
+// sum r^2 <= kFlushPixels * 65025 < 2^31).
+struct RunSpan {
+  const std::uint32_t* pre;   // row prefix sums of O ...
+  const std::uint32_t* pre2;  // ... and of O^2
+  std::int32_t lo, hi;
+};
+
+FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+void accumulate_runs(const RunSpan* __restrict runs, int nruns, int D, std::int32_t* __restrict sr,
+                     std::int32_t* __restrict srr) {
+  for (int d0 = 0; d0 < D; d0 += kBlock) {
+    std::uint32_t a[kBlock] = {}, b[kBlock] = {};
+    for (int i = 0; i < nruns; ++i) {
+      const std::uint32_t* __restrict ph = runs[i].pre + runs[i].hi + d0;
+      const std::uint32_t* __restrict pl = runs[i].pre + runs[i].lo + d0;
+      const std::uint32_t* __restrict qh = runs[i].pre2 + runs[i].hi + d0;
+      const std::uint32_t* __restrict ql = runs[i].pre2 + runs[i].lo + d0;
+      for (int j = 0; j < kBlock; ++j) {
+        a[j] += ph[j] - pl[j];
+        b[j] += qh[j] - ql[j];
+      }
+    }
+    const int nb = std::min(kBlock, D - d0);
+    for (int j = 0; j < nb; ++j) {
+      sr[d0 + j] = static_cast<std::int32_t>(a[j]);
+      srr[d0 + j] = static_cast<std::int32_t>(b[j]);
+    }
   }
+}
+
+// max_d GSAD_d, the normaliser of eq. (7) (a max reduction that vectorises).
+FS_TARGET_CLONES
+std::int32_t max_of(const std::int32_t* __restrict v, int D) {
+  std::int32_t m = 0;
+  for (int d = 0; d < D; ++d) m = std::max(m, v[d]);
+  return m;
 }
 
 // eq. (1): NCC in Q16 from the exact integer sums, clamped to [0, 1] (Data Cost 1, eq. 8).
@@ -239,21 +281,36 @@ void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, cons
 }
 
 // Lower bound of the K-th largest prescore: the K-th largest of the maxima of M = 2K disjoint
-// chunks (K values at distinct positions, one per chunk, are >= it; M = K when D < 4K). The chunk
-// maxima are branch-free (vectorises); 0 when D < 2K.
+// classes of disparities (K values at distinct positions, one per class, are >= it; M = K when
+// D < 4K); 0 when D < 2K. The classes are the residues d mod M, so the class maxima are one
+// vertical max over rows of M lanes (vectorises, M = 16 for the default K = 8 has its own
+// fixed-width loop), and neighbouring disparities — a prescore peak is a few d wide — fall into
+// different classes, which keeps the bound close to the K-th value.
+// The K-th largest of m values: the one whose rank (number of values before it in the order
+// value desc, index asc) is K - 1. Branch-free all-pairs ranks; for m = 16 a few vector
+// instructions instead of nth_element's data-dependent branches.
+inline std::uint32_t kth_largest(const std::uint32_t* v, int m, int K) {
+  std::uint32_t out = 0;
+  for (int i = 0; i < m; ++i) {
+    int rank = 0;
+    for (int j = 0; j < m; ++j) rank += (v[j] > v[i]) | ((v[j] == v[i]) & (j < i));
+    out = rank == K - 1 ? v[i] : out;
+  }
+  return out;
+}
+
 FS_TARGET_CLONES
 std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, int K) {
   if (D < 2 * K || K > 32) return 0;
   const int M = D >= 4 * K ? 2 * K : K;
-  const int chunk = D / M;
-  std::uint32_t mx[64];
-  for (int k = 0; k < M; ++k) {
-    std::uint32_t m = 0;
-    for (int d = k * chunk; d < (k + 1) * chunk; ++d) m = std::max(m, prescore[d]);
-    mx[k] = m;
+  std::uint32_t mx[64] = {};
+  int d0 = 0;
+  if (M == 16) {  // the default K = 8: fixed-width rows of 16 lanes
+    for (; d0 + 16 <= D; d0 += 16)
+      for (int k = 0; k < 16; ++k) mx[k] = std::max(mx[k], prescore[d0 + k]);
   }
-  std::nth_element(mx, mx + (K - 1), mx + M, std::greater<>());
-  return mx[K - 1];
+  for (int d = d0; d < D; ++d) mx[d % M] = std::max(mx[d % M], prescore[d]);
+  return kth_largest(mx, M, K);
 }
 
 // Flags of the disparities that reach thr (1 byte per d, vectorises); the flag array is padded
@@ -347,6 +404,7 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
     std::vector<std::int64_t> slr(uD), sg(uD), sr(uD), srr(uD);
     std::int32_t blr[kBlock], bg[kBlock];
     std::vector<SegPixel> px;
+    std::vector<RunSpan> spans;
     std::vector<std::uint32_t> joint(std::size_t(kNmiGroup) * std::size_t(B * B), 0), hy(std::size_t(kNmiGroup * B), 0),
         hx(static_cast<std::size_t>(B));
     std::vector<std::uint32_t> prescore(uD);
@@ -363,44 +421,48 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
         std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
       }
-      std::fill(sr32.begin(), sr32.end(), 0); std::fill(srr32.begin(), srr32.end(), 0);
       std::fill(hx.begin(), hx.end(), 0);  // joint and hy are all-zero after each candidate
 
-      // Pixel list, grey-value sums, H(x) histogram and the partner-only sums (per run).
+      // Pixel list, grey-value sums, H(x) histogram and the runs' partner spans. The partner-only
+      // sums are taken over chunks of at most kFlushPixels pixels (int32 lanes); all but the last
+      // chunk are added into the int64 sums, the last one stays in sr32/srr32.
       px.clear();
+      spans.clear();
       std::int64_t sl = 0, sll = 0;
       std::uint64_t sum_tx = 0;
       int since_flush = 0;
+      int bx_lo = B, bx_hi = -1;  // the rows of the joint histograms this segment can touch
       for (const Run* r = r0; r != r1; ++r) {
         const std::uint8_t* lrow = ref.row(r->y);
         const std::uint16_t* grow = ref_grad.row(r->y);
         const auto ro = static_cast<std::int32_t>(std::size_t(r->y) * std::size_t(pr.stride));
         const int len = r->x1 - r->x0;  // <= W <= kFlushPixels (checked by the Matcher)
         if (since_flush + len > kFlushPixels) {
-          for (std::size_t i = 0; i < uD; ++i) {
-            sr[i] += sr32[i]; srr[i] += srr32[i];
-            sr32[i] = srr32[i] = 0;
-          }
+          accumulate_runs(spans.data(), static_cast<int>(spans.size()), D, sr32.data(), srr32.data());
+          for (std::size_t i = 0; i < uD; ++i) { sr[i] += sr32[i]; srr[i] += srr32[i]; }
+          spans.clear();
           since_flush = 0;
         }
         since_flush += len;
         // The run's partners at d are O[lo + d .. hi + d).
         const int lo = std::min(base_of(r->x0), base_of(r->x1 - 1));
         const int hi = std::max(base_of(r->x0), base_of(r->x1 - 1)) + 1;
-        accumulate_run(pr.pre.data() + std::size_t(r->y) * std::size_t(pr.pre_stride),
-                       pr.pre2.data() + std::size_t(r->y) * std::size_t(pr.pre_stride), lo, hi, sr32.data(),
-                       srr32.data(), D);
+        const std::size_t pre_row = std::size_t(r->y) * std::size_t(pr.pre_stride);
+        spans.push_back({pr.pre.data() + pre_row, pr.pre2.data() + pre_row, lo, hi});
         for (int x = r->x0; x < r->x1; ++x) {
           const std::int32_t l = lrow[x];
           sl += l;
           sll += l * l;
           const auto bx = static_cast<std::uint8_t>((l * B) >> 8);
+          bx_lo = std::min<int>(bx_lo, bx);
+          bx_hi = std::max<int>(bx_hi, bx);
           std::uint32_t& cx = hx[bx];
           sum_tx += T[cx + 1] - T[cx];
           ++cx;
           px.push_back({ro + base_of(x), grow[x], static_cast<std::uint8_t>(l), bx});
         }
       }
+      accumulate_runs(spans.data(), static_cast<int>(spans.size()), D, sr32.data(), srr32.data());
       const auto n = static_cast<std::int64_t>(px.size());
 
       // sum l*r and sum |gl - gr|, kBlock disparities at a time, kFlushPixels pixels at a time;
@@ -411,8 +473,7 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         for (int d0 = 0; d0 < D; d0 += kBlock)
           accumulate_block(px.data(), static_cast<int>(px.size()), pr.val.data() + d0, pr.grad.data() + d0,
                            slr32.data() + d0, sg32.data() + d0);
-        std::int32_t gmax = 0;
-        for (int d = 0; d < D; ++d) gmax = std::max(gmax, sg32[std::size_t(d)]);
+        const std::int32_t gmax = max_of(sg32.data(), D);
         const double inv_gmax = gmax > 0 ? static_cast<double>(kQ16One) / static_cast<double>(gmax) : 0.0;
         ncc_igsad_q16_i32(slr32.data(), sr32.data(), srr32.data(), sg32.data(), D, static_cast<double>(n),
                           static_cast<double>(sl), varl, inv_gmax, c.ncc.data() + off, c.igsad.data() + off);
@@ -460,14 +521,19 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
       const std::uint64_t un = static_cast<std::uint64_t>(n);
       const std::uint64_t H_x = detail::entropy_q16(T, un, sum_tx);
       const std::size_t BB = std::size_t(B) * std::size_t(B);
-      const bool clear_by_memset = px.size() * 2 >= BB / 8;
+      // Only rows bx_lo .. bx_hi of the joint histograms are touched (a segment's grey values span
+      // a few bins): those rows are cleared by memset unless revisiting the hit cells is shorter.
+      const std::size_t touched = bx_hi >= bx_lo ? std::size_t(bx_hi - bx_lo + 1) * std::size_t(B) : 0;
+      const bool clear_by_memset = px.size() * 2 >= touched / 8;
       for (int k0 = 0; k0 < K; k0 += kNmiGroup) {
         const std::uint8_t* bin[kNmiGroup];
         for (int j = 0; j < kNmiGroup; ++j) bin[j] = pr.bin.data() + order[std::size_t(std::min(k0 + j, K - 1))];
         std::uint64_t sum_txy[kNmiGroup], sum_ty[kNmiGroup];
         nmi_group_sums(px.data(), px.size(), bin, B, joint.data(), hy.data(), DT.data(), sum_txy, sum_ty);
         if (clear_by_memset) {
-          std::memset(joint.data(), 0, joint.size() * sizeof(std::uint32_t));
+          for (int j = 0; j < kNmiGroup; ++j)
+            std::memset(joint.data() + std::size_t(j) * BB + std::size_t(bx_lo) * std::size_t(B), 0,
+                        touched * sizeof(std::uint32_t));
           std::memset(hy.data(), 0, hy.size() * sizeof(std::uint32_t));
         } else {
           for (const SegPixel& q : px)
