@@ -90,9 +90,9 @@ StageStat stat_of(std::vector<double> v) {
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
-      look_before_turn_m;
+      look_before_turn_m, moving_travel_sigmas, static_track_dwell_s;
   int moving_min_hits, static_track_cells, look_min_hits;
-  bool static_track_keep_circles, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
+  bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -103,12 +103,15 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
   p.moving_min_travel_m = v.num("loop.moving_min_travel_m");
+  p.moving_travel_sigmas = v.num("loop.moving_travel_sigmas");
   p.near_track_m = v.num("loop.near_track_m");
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
   p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
+  p.static_track_dwell_s = v.num("loop.static_track_dwell_s");
+  p.static_track_no_growth = v.flag("loop.static_track_no_growth");
   p.reach_travel_rate = v.flag("loop.reach_travel_rate");
   p.reach_travel_noise_sigmas = v.num("loop.reach_travel_noise_sigmas");
   p.reach_lost_tracks = v.flag("loop.reach_lost_tracks");
@@ -417,8 +420,17 @@ LoopResult RobotLoop::run() {
     return world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
                                      tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s));
   };
+  // static_track_dwell_s: also when those cells were occupied since static_track_dwell_s before
+  // its last measurement — the obstacle stood where it is now for that long. The first test cannot
+  // hold for tracks born together with their map cells (the start of a run, a newly seen area:
+  // every obstacle then), which stay "unsupported" for life; a mover that keeps moving has fresh
+  // cells at its last position, one that stopped is static while it stands.
   const auto static_support = [&](const robot::Track& tr) {
-    return lp.static_track_cells > 0 && support_cells(tr) >= lp.static_track_cells;
+    if (lp.static_track_cells <= 0) return false;
+    if (support_cells(tr) >= lp.static_track_cells) return true;
+    return lp.static_track_dwell_s > 0 &&
+           world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
+                                     tr.last_meas_ns - robot::s_to_ns(lp.static_track_dwell_s)) >= lp.static_track_cells;
   };
   // Speed to grow a track's reachable set with (robot::reach_speed, [loop] reach_travel_rate).
   const auto reach_speed_of = [&](const robot::Track& tr, double filtered_speed) {
@@ -586,6 +598,12 @@ LoopResult RobotLoop::run() {
           const double dist = robot::norm(travel);
           const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
           if (dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return false;
+          // moving_travel_sigmas: the travel must also exceed what the depth noise of its two end
+          // measurements explains (sigma grows with Z^2: 0.25 m at 4 m for the suite's camera, so a
+          // fixed 0.3 m lets a far static obstacle's noise "travel").
+          if (lp.moving_travel_sigmas > 0 &&
+              dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
+            return false;
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
         if (!moving()) {
@@ -613,7 +631,9 @@ LoopResult RobotLoop::run() {
             // that holds the robot is kept for a track without static support (a mover's: the robot
             // may then only move away from where it was last seen; seed 11, scenario 92).
             CircleObstacle reach;
-            const double speed = reach_speed_of(tr, robot::norm(o.vel));
+            // static_track_no_growth: a track with static support is a static obstacle, its set does
+            // not grow with its (noise) velocity: the obstacle where it was last measured.
+            const double speed = supported && lp.static_track_no_growth ? 0.0 : reach_speed_of(tr, robot::norm(o.vel));
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;

@@ -137,6 +137,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_p = m.p;
     tr.first_meas_ns = t_ns;
     tr.first_meas_p = m.p;
+    tr.first_meas_var = sigma * sigma;
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;
     tr.updated_this_frame = true;

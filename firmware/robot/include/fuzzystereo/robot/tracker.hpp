@@ -34,6 +34,7 @@ struct Track {
   Vec2 last_meas_p;             // for the finite-difference velocity measurement
   std::int64_t first_meas_ns = 0;  // the measurement that started the track
   Vec2 first_meas_p;
+  double first_meas_var = 0;    // the first measurement's position variance [m^2]
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool updated_this_frame = false;
