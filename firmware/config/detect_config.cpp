@@ -81,6 +81,8 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.merge_max_rel_disparity = v.num("detect.merge_max_rel_disparity");
   p.merge_group_max_rel = v.num("detect.merge_group_max_rel");
   p.merge_attach = v.flag("detect.merge_attach");
+  p.merge_bridge_max_px = v.integer("detect.merge_bridge_max_px");
+  p.merge_bridge_max_overlap = v.num("detect.merge_bridge_max_overlap");
   p.min_height_m = v.num("detect.min_height_m");
   p.near_m = v.num("detect.near_m");
   p.far_m = v.num("detect.far_m");

@@ -179,6 +179,29 @@ def test_vertical_gap_joins_a_post_cut_in_height():
     assert r[1] == r[2] and len({r[1], r[3], r[4]}) == 3
 
 
+def test_small_bridge_joins_one_side_only():
+    # As tests/cpp/core/test_detect_linkage.cpp SmallBridgeNoLongerJoinsObstaclesSideBySide and
+    # SmallBridgeStillJoinsAPieceInTheSameColumns (session 10): A at 20 px, B beside it at 17 px (15 % farther),
+    # a 66-px bridge C at 18.5 px between them; then D at 17 px below A, in A's columns, with a small C between.
+    comp = np.zeros((100, 100), np.int64)
+    d = np.full((100, 100), np.nan)
+    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 10, 49, 1, 20.0), (42, 47, 20, 30, 2, 18.5), (50, 79, 10, 39, 3, 17.0)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = disp
+    assert len(set(refdet.merge_fragments(comp, d, 3, 8, 0.1)[1:].tolist())) == 1  # single linkage: one chain
+    r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=0.5)
+    assert r[1] == r[2] != r[3]
+    comp[:] = 0
+    d[:] = np.nan
+    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 10, 49, 1, 20.0), (20, 25, 51, 56, 2, 18.5), (12, 37, 60, 79, 3, 17.0)]:
+        comp[y0:y1 + 1, x0:x1 + 1] = lab
+        d[y0:y1 + 1, x0:x1 + 1] = disp
+    r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=0.5)
+    assert r[1] == r[2] == r[3]
+    r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=1.0)
+    assert r[1] == r[2] != r[3]
+
+
 def test_contained_groups_join_or_drop():
     # As tests/cpp/core/test_detect_scene.cpp ContainedGroupsJoinOrDrop: an obstacle at 20 px with a
     # 15 %-nearer piece (200 px), a nearer 100-px blob and a farther 100-px blob inside its box.

@@ -1,6 +1,7 @@
 // Fragment merging by complete linkage and attaching (session 8, docs/detection.md "(e) Fragment merging"):
 // a small fragment at an intermediate depth no longer chains two obstacles 15 % apart, and a fragment the
-// span limit refuses still joins the obstacle whose median it is near.
+// span limit refuses still joins the obstacle whose median it is near. No depth bridges (session 10): with
+// single linkage a small fragment may close a gap in the image between two large components, not a gap in depth.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -145,6 +146,56 @@ TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
   std::sort(q.begin(), q.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
   detect::drop_seen_through(q, l3, p);
   EXPECT_EQ(q.size(), 2u);
+}
+
+TEST(DetectLinkage, SmallBridgeNoLongerJoinsObstaclesSideBySide) {
+  // The first test's scene (A 1200 px at Q4 320, B 900 px at 272, 15 % farther, 10 columns apart; a 66-px bridge
+  // C at 296 within 10 % of both), now with single linkage and merge_bridge_max_px: C joins its anchor A (the
+  // closer pair, 7.5 % against 8.1 %) and not B, whose median is 15 % from A's and which stands beside A.
+  ImageI32 comp(100, 60, 0);
+  ImageI16 disp(100, 60, kInvalidDisp);
+  fill(comp, disp, 1, 10, 10, 39, 49, 320);
+  fill(comp, disp, 2, 42, 20, 47, 30, 296);
+  fill(comp, disp, 3, 50, 10, 79, 39, 272);
+  DetectParams p = isolated();
+  p.merge_group_max_rel = 0.0;
+  p.merge_bridge_max_px = 0;  // off: plain single linkage, A - C - B is one box
+  ASSERT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+  p.merge_bridge_max_px = 500;
+  p.merge_bridge_max_overlap = 0.5;
+  ImageI32 labels;
+  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, &labels);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].x0, 10);
+  EXPECT_EQ(o[0].x1, 47);
+  EXPECT_EQ(o[0].pixel_count, 1200 + 66);
+  EXPECT_EQ(o[0].disparity_q4, 320);
+  EXPECT_EQ(o[1].x0, 50);
+  EXPECT_EQ(o[1].pixel_count, 900);
+  EXPECT_EQ(labels.at(45, 25), 1);
+  EXPECT_EQ(labels.at(60, 20), 2);
+  p.merge_bridge_max_px = 50;  // C (66 px) is large itself: its direct pairs link as before
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+}
+
+TEST(DetectLinkage, SmallBridgeStillJoinsAPieceInTheSameColumns) {
+  // D (520 px at 272, 15 % farther than A) lies below A in A's columns, 10 rows apart; a small piece C at 296
+  // between them touches both. D is no neighbour beside A (it shares all its columns with A): the bridge is
+  // kept, as in plain single linkage (a wrong-depth piece of A's face), unless merge_bridge_max_overlap = 1.
+  ImageI32 comp(100, 100, 0);
+  ImageI16 disp(100, 100, kInvalidDisp);
+  fill(comp, disp, 1, 10, 10, 39, 49, 320);
+  fill(comp, disp, 2, 20, 51, 25, 56, 296);
+  fill(comp, disp, 3, 12, 60, 37, 79, 272);
+  DetectParams p = isolated();
+  p.merge_bridge_max_px = 500;
+  p.merge_bridge_max_overlap = 0.5;
+  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_EQ(o[0].pixel_count, 1200 + 36 + 520);
+  EXPECT_EQ(o[0].y1, 79);
+  p.merge_bridge_max_overlap = 1.0;  // refused for any overlap: D stays apart
+  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 2u);
 }
 
 }  // namespace

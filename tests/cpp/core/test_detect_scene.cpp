@@ -207,6 +207,8 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_DOUBLE_EQ(p.max_distance_m, d.max_distance_m);
   EXPECT_DOUBLE_EQ(p.merge_group_max_rel, d.merge_group_max_rel);  // session 8
   EXPECT_EQ(p.merge_attach, d.merge_attach);
+  EXPECT_EQ(p.merge_bridge_max_px, d.merge_bridge_max_px);  // session 10
+  EXPECT_DOUBLE_EQ(p.merge_bridge_max_overlap, d.merge_bridge_max_overlap);
   EXPECT_DOUBLE_EQ(p.seen_through_drop_share, d.seen_through_drop_share);
   EXPECT_DOUBLE_EQ(p.sky_max_texture, d.sky_max_texture);
   EXPECT_EQ(p.sky_texture_radius, d.sky_texture_radius);
@@ -225,6 +227,8 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_THROW(parse_config("[detect]\nsky_limit = \"left\"\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_max_texture = -1.0\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nmerge_group_max_rel = 1.5\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nmerge_bridge_max_px = -1\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nmerge_bridge_max_overlap = 1.5\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nseen_through_drop_share = 2.0\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_texture_radius = 0\n", "t"), ConfigError);
   EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);

@@ -89,6 +89,10 @@ struct DetectParams {
                                    // see docs/results-detection.md "Session 8" for the trade-off)
   bool merge_attach = true;        // with complete linkage: each group then joins the touching larger group of
                                    // nearest median within merge_max_rel_disparity (one step, no chains)
+  int merge_bridge_max_px = 0;     // single linkage: components with fewer pixels than this join at most one
+                                   // group of larger ones (no chains through small fragments; session 10, 0 = off)
+  double merge_bridge_max_overlap = 1.0;  // ... refused only between large ones side by side: column overlap <= this
+                                         // share of the narrower box
   int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
                                       // a gap up to this wide (0 = off)
   double split_min_rel = 0.12;     // split a component whose disparity histogram has two modes this far apart

@@ -69,13 +69,57 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
         if (b.n == 0 || b.x0 > a.x1 + g || a.x0 > b.x1 + g || b.y0 > a.y1 + gv || a.y0 > b.y1 + gv) continue;
         const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
         if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
-        if (p.merge_group_max_rel <= 0) {  // single linkage (the pairs' order does not matter)
+        if (p.merge_group_max_rel <= 0 && p.merge_bridge_max_px <= 0) {  // single linkage (order-free)
           const int r1 = find(c1), r2 = find(c2);
           if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
         } else {
           pairs.push_back({std::abs(m1 - m2), std::max<std::int64_t>(1, std::max(m1, m2)), c1, c2});
         }
       }
+    }
+    // No depth bridges (session 10, docs/detection.md "(e) Fragment merging"): single linkage, but a
+    // component with fewer than merge_bridge_max_px pixels ("small") may close a gap in the image between
+    // larger components, not a gap in depth. The large components link among themselves and the small ones
+    // among themselves, as before; then each group of small ones joins its anchor, the large component it
+    // has the closest pair with (|m1 - m2| / max, exact fractions; ties: the smaller label), and every other
+    // large component it has a pair with whose median is within merge_max_rel_disparity of the anchor's.
+    // So small fragments at intermediate depths (the matcher's ramp between two obstacles 15-25 % apart,
+    // each piece within 10 % of the next) no longer chain the two obstacles into one box. Component
+    // medians only: the joins do not depend on their order.
+    if (p.merge_group_max_rel <= 0 && p.merge_bridge_max_px > 0) {
+      auto big = [&](int c) { return acc[std::size_t(c)].n >= p.merge_bridge_max_px; };
+      auto unite = [&](int c1, int c2) {
+        const int r1 = find(c1), r2 = find(c2);
+        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+      };
+      for (const Pair& q : pairs)
+        if (big(q.c1) == big(q.c2)) unite(q.c1, q.c2);
+      // Per small group (its root after the small-small joins): the anchor.
+      std::vector<int> anchor(std::size_t(count) + 1, 0);
+      std::vector<std::int64_t> anum(std::size_t(count) + 1, 0), aden(std::size_t(count) + 1, 1);
+      for (const Pair& q : pairs) {
+        if (big(q.c1) == big(q.c2)) continue;
+        const int rs = find(big(q.c1) ? q.c2 : q.c1), cb = big(q.c1) ? q.c1 : q.c2;
+        const std::int64_t l = q.num * aden[std::size_t(rs)], r = anum[std::size_t(rs)] * q.den;
+        const int t = anchor[std::size_t(rs)];
+        if (t == 0 || l < r || (l == r && cb < t))
+          anchor[std::size_t(rs)] = cb, anum[std::size_t(rs)] = q.num, aden[std::size_t(rs)] = q.den;
+      }
+      std::vector<std::pair<int, int>> joins;  // (small group root, large component), decided before joining
+      for (const Pair& q : pairs) {
+        if (big(q.c1) == big(q.c2)) continue;
+        const int rs = find(big(q.c1) ? q.c2 : q.c1), cb = big(q.c1) ? q.c1 : q.c2;
+        const int ca = anchor[std::size_t(rs)], ma = med[std::size_t(ca)], mb = med[std::size_t(cb)];
+        // Side by side: the two boxes share at most merge_bridge_max_overlap of the narrower one's columns.
+        const Acc& a = acc[std::size_t(ca)];
+        const Acc& b = acc[std::size_t(cb)];
+        const int ov = std::min(a.x1, b.x1) - std::max(a.x0, b.x0) + 1;
+        const int narrow = std::min(a.x1 - a.x0, b.x1 - b.x0) + 1;
+        const bool side = double(ov) <= p.merge_bridge_max_overlap * double(narrow);
+        if (!side || std::abs(ma - mb) <= p.merge_max_rel_disparity * std::max(ma, mb)) joins.emplace_back(rs, cb);
+      }
+      for (const auto& [rs, cb] : joins) unite(rs, cb);
+      pairs.clear();
     }
     // Complete linkage on the members' medians (session 8, docs/detection.md "(e) Fragment merging"): the
     // closest pairs first (ties by label), two groups join only when all their members' medians together

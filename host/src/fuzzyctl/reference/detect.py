@@ -420,14 +420,18 @@ def _group_stats(comp: np.ndarray, disp: np.ndarray, roots: np.ndarray):
 
 
 def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: float, group_rel: float = 0.0,
-                    attach: bool = False, gap_vertical: int = 0) -> np.ndarray:
+                    attach: bool = False, gap_vertical: int = 0, bridge_px: int = 0,
+                    bridge_overlap: float = 1.0) -> np.ndarray:
     """Component -> group root (smallest label): boxes grown by `gap` (in y by max(gap, gap_vertical),
     session 9) overlap and the medians differ
     by <= rel of the larger (the firmware uses the lower median of Q4 values). group_rel <= 0: single
     linkage. group_rel > 0 (session 8): complete linkage, closest pairs first, two groups join only when all
     their members' medians span <= group_rel of the largest; then, with `attach`, each group joins the
     touching larger group (more pixels) whose group median is nearest within rel (no chains: a group that
-    joins is no target)."""
+    joins is no target). bridge_px > 0 with single linkage (session 10): components with fewer pixels
+    ("small") link among themselves, the large ones among themselves; each small group then joins its anchor
+    (the large component of its closest pair) and every other large component it pairs with whose median is
+    within rel of the anchor's or whose box shares more than bridge_overlap of the narrower one's columns."""
     joins = _Joins(range(n + 1))
     if gap < 0 or rel <= 0:
         return np.arange(n + 1)
@@ -451,10 +455,35 @@ def merge_fragments(comp: np.ndarray, disp: np.ndarray, n: int, gap: int, rel: f
                 continue
             if abs(med[c1] - med[c2]) > rel * max(med[c1], med[c2]) + 1e-9:
                 continue
-            if group_rel <= 0:
+            if group_rel <= 0 and bridge_px <= 0:
                 joins.join(c1, c2)
             else:
                 pairs.append((abs(med[c1] - med[c2]) / max(med[c1], med[c2], 1e-9), c1, c2))
+    if group_rel <= 0 and bridge_px > 0:
+        size = {c: int((comp == c).sum()) for c in cs}
+        big = {c: size[c] >= bridge_px for c in cs}
+        for _, c1, c2 in pairs:
+            if big[c1] == big[c2]:
+                joins.join(c1, c2)
+        anchor = {}
+        for f, c1, c2 in pairs:
+            if big[c1] != big[c2]:
+                rs, cb = joins.find(c2 if big[c1] else c1), (c1 if big[c1] else c2)
+                if rs not in anchor or (f, cb) < anchor[rs]:
+                    anchor[rs] = (f, cb)
+        todo = []
+        for _, c1, c2 in pairs:
+            if big[c1] != big[c2]:
+                rs, cb = joins.find(c2 if big[c1] else c1), (c1 if big[c1] else c2)
+                ca = anchor[rs][1]
+                a, b = box[ca], box[cb]
+                ov = min(a[2], b[2]) - max(a[0], b[0]) + 1
+                side = ov <= bridge_overlap * (min(a[2] - a[0], b[2] - b[0]) + 1)
+                if not side or abs(med[ca] - med[cb]) <= rel * max(med[ca], med[cb]) + 1e-9:
+                    todo.append((rs, cb))
+        for rs, cb in todo:
+            joins.join(rs, cb)
+        return np.array([joins.find(c) for c in range(n + 1)])
     if group_rel <= 0:
         return np.array([joins.find(c) for c in range(n + 1)])
     lo = dict(med)
@@ -829,7 +858,8 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
                             int(p.split_rounds))
     roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
                             float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)),
-                            int(getattr(p, "merge_gap_vertical_px", 0)))
+                            int(getattr(p, "merge_gap_vertical_px", 0)), int(getattr(p, "merge_bridge_max_px", 0)),
+                            float(getattr(p, "merge_bridge_max_overlap", 1.0)))
     roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
                         int(p.merge_edge_columns))
     roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
