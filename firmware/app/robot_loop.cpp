@@ -30,6 +30,7 @@
 #include "fuzzystereo/robot/odometry.hpp"
 #include "fuzzystereo/robot/params.hpp"
 #include "fuzzystereo/robot/planner.hpp"
+#include "fuzzystereo/robot/static_support.hpp"
 #include "fuzzystereo/robot/tracker.hpp"
 #include "fuzzystereo/sim/world.hpp"
 #include "io.hpp"
@@ -414,24 +415,12 @@ LoopResult RobotLoop::run() {
   Pose2D true_pose = start, last_true = start;
   int blocked_run = 0;
   robot::ObstacleMap world_map;
-  // Static support of a track (see the planning step below): the map cells within its radius + 5 cm
-  // of its last measured position occupied since static_track_lag_s before its first measurement.
+  // Static support of a track (see the planning step below; robot::has_static_support).
+  const robot::StaticSupportParams ssp{lp.static_track_cells, lp.static_track_lag_s, lp.static_track_dwell_s};
   const auto support_cells = [&](const robot::Track& tr) {
-    return world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                     tr.first_meas_ns - robot::s_to_ns(lp.static_track_lag_s));
+    return robot::static_support_cells(world_map, tr, lp.static_track_lag_s);
   };
-  // static_track_dwell_s: also when those cells were occupied since static_track_dwell_s before
-  // its last measurement — the obstacle stood where it is now for that long. The first test cannot
-  // hold for tracks born together with their map cells (the start of a run, a newly seen area:
-  // every obstacle then), which stay "unsupported" for life; a mover that keeps moving has fresh
-  // cells at its last position, one that stopped is static while it stands.
-  const auto static_support = [&](const robot::Track& tr) {
-    if (lp.static_track_cells <= 0) return false;
-    if (support_cells(tr) >= lp.static_track_cells) return true;
-    return lp.static_track_dwell_s > 0 &&
-           world_map.occupied_before(tr.last_meas_p, tr.radius_m + 0.05,
-                                     tr.last_meas_ns - robot::s_to_ns(lp.static_track_dwell_s)) >= lp.static_track_cells;
-  };
+  const auto static_support = [&](const robot::Track& tr) { return robot::has_static_support(world_map, tr, ssp); };
   // Speed to grow a track's reachable set with (robot::reach_speed, [loop] reach_travel_rate).
   const auto reach_speed_of = [&](const robot::Track& tr, double filtered_speed) {
     return robot::reach_speed(filtered_speed, tr.first_meas_p, tr.last_meas_p,

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "fuzzystereo/robot/obstacle_map.hpp"
+#include "fuzzystereo/robot/static_support.hpp"
 
 namespace fs::robot {
 namespace {
@@ -72,6 +73,47 @@ TEST(ObstacleMap, OccupiedBeforeTellsOldSurfacesFromNewOnes) {
   map.integrate(wall);
   EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 9 * s), 0);
   EXPECT_EQ(map.occupied_before({2.1, 0.07}, 0.2, 10 * s), 3);
+}
+
+// has_static_support: a wall seen from the first frame of the run, its track born in that frame
+// (the start of a run: map cells and track appear together). The lag test (cells occupied 1 s
+// before the track's first measurement) never holds for it; the dwell test (cells occupied 2 s
+// before its last measurement) holds once the wall has been seen for 2 s. A mover that keeps
+// moving has fresh cells at its last position and passes neither.
+TEST(StaticSupport, DwellSupportsTracksBornWithTheirCells) {
+  ObstacleMap map;
+  const std::int64_t s = 1'000'000'000;
+  CameraScan wall = scan_at({0, 0, 0}, 0.0);
+  wall.hits = {{2.0, 0.0}, {2.0, 0.07}, {2.0, 0.14}};
+  Track tr;
+  tr.radius_m = 0.1;
+  tr.first_meas_ns = 0;
+  tr.first_meas_p = {2.0, 0.07};
+  tr.last_meas_p = {2.0, 0.07};
+  const StaticSupportParams lag_only{2, 1.0, 0.0}, dwell{2, 1.0, 2.0};
+  for (int k = 0; k <= 30; ++k) {  // 0 .. 3 s at 10 Hz
+    wall.t_ns = k * s / 10;
+    map.integrate(wall);
+    tr.last_meas_ns = wall.t_ns;
+    EXPECT_FALSE(has_static_support(map, tr, lag_only)) << k;
+    EXPECT_EQ(has_static_support(map, tr, dwell), k >= 20) << k;  // seen for 2 s
+  }
+  EXPECT_EQ(static_support_cells(map, tr, 1.0), 0);
+  EXPECT_FALSE(has_static_support(map, tr, {0, 1.0, 2.0}));  // cells = 0: the test is off
+  // A mover at 0.1 m per frame (1 m/s) along y = 2: at each frame its cells are new.
+  Track mv;
+  mv.radius_m = 0.1;
+  mv.first_meas_ns = 31 * s / 10;
+  for (int k = 0; k < 30; ++k) {
+    CameraScan sc = scan_at({0, 0, 0}, 0.0);
+    const double y = 2.0 - 0.1 * k;
+    sc.hits = {{3.0, y}, {3.0, y + 0.05}};
+    sc.t_ns = (31 + k) * s / 10;
+    map.integrate(sc);
+    mv.last_meas_ns = sc.t_ns;
+    mv.last_meas_p = {3.0, y + 0.025};
+    EXPECT_FALSE(has_static_support(map, mv, dwell)) << k;
+  }
 }
 
 TEST(ObstacleMap, SeeingThroughACellClearsItOnlyAfterEnoughFrames) {

@@ -1,0 +1,30 @@
+// Static support of a track: does the static map already hold the obstacle a track sits on?
+// (docs/robot.md, "Static support of a track"). A mover's surface cells become occupied when it
+// arrives; a static obstacle's were there before. The robot loop uses it to keep static obstacles'
+// tracks (fragments of walls and large cylinders read as 0.1-1 m/s "movers") from acting as movers.
+#pragma once
+#include <cstdint>
+
+#include "fuzzystereo/robot/obstacle_map.hpp"
+#include "fuzzystereo/robot/tracker.hpp"
+
+namespace fs::robot {
+
+struct StaticSupportParams {
+  int cells = 2;         // [loop] static_track_cells: map cells needed (0 = the test is off)
+  double lag_s = 1.0;    // [loop] static_track_lag_s
+  double dwell_s = 0.0;  // [loop] static_track_dwell_s (0 = off)
+};
+
+// Map cells within the track's radius + 5 cm of its last measured position, occupied without a
+// break since lag_s before its first measurement (the count the run record logs as "support").
+int static_support_cells(const ObstacleMap& map, const Track& tr, double lag_s);
+
+// The track has static support when at least `cells` such cells exist, or (dwell_s > 0) when at
+// least `cells` cells there have been occupied since dwell_s before its last measurement: the
+// obstacle stood where it is now for that long. The first test cannot hold for tracks born
+// together with their map cells (the start of a run, a newly seen area), which would otherwise
+// stay unsupported for life; a mover that keeps moving has fresh cells at its last position.
+bool has_static_support(const ObstacleMap& map, const Track& tr, const StaticSupportParams& p);
+
+}  // namespace fs::robot
