@@ -150,12 +150,18 @@ def test_bimodal_split_separates_ramp_joined_depths():
     assert refdet.split_bimodal(comp, n, d, 100, 0.12, 0.1, 2)[1] == 1
 
 
-def test_occluded_obstacle_merges_across_nearer_one():
-    comp = np.zeros((80, 200), np.int32)
-    d = np.full((80, 200), np.nan)
-    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 20, 59, 1, 20.0), (40, 89, 5, 75, 2, 40.0), (90, 119, 20, 59, 3, 20.1)]:
+def _boxes(shape, boxes, dtype=np.int64):
+    """(component labels, disparity) with each (x0, x1, y0, y1, label, disparity px) box filled (inclusive)."""
+    comp = np.zeros(shape, dtype)
+    d = np.full(shape, np.nan)
+    for (x0, x1, y0, y1, lab, disp) in boxes:
         comp[y0:y1 + 1, x0:x1 + 1] = lab
         d[y0:y1 + 1, x0:x1 + 1] = disp
+    return comp, d
+
+
+def test_occluded_obstacle_merges_across_nearer_one():
+    comp, d = _boxes((80, 200), [(10, 39, 20, 59, 1, 20.0), (40, 89, 5, 75, 2, 40.0), (90, 119, 20, 59, 3, 20.1)], np.int32)
     roots = refdet.merge_fragments(comp, d, 3, 8, 0.1)
     assert len(set(roots[1:].tolist())) == 3
     r = refdet.merge_occluded(comp, d, 3, roots, 8, 0.1, 200, 10)
@@ -183,19 +189,11 @@ def test_small_bridge_joins_one_side_only():
     # As tests/cpp/core/test_detect_linkage.cpp SmallBridgeNoLongerJoinsObstaclesSideBySide and
     # SmallBridgeStillJoinsAPieceInTheSameColumns (session 10): A at 20 px, B beside it at 17 px (15 % farther),
     # a 66-px bridge C at 18.5 px between them; then D at 17 px below A, in A's columns, with a small C between.
-    comp = np.zeros((100, 100), np.int64)
-    d = np.full((100, 100), np.nan)
-    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 10, 49, 1, 20.0), (42, 47, 20, 30, 2, 18.5), (50, 79, 10, 39, 3, 17.0)]:
-        comp[y0:y1 + 1, x0:x1 + 1] = lab
-        d[y0:y1 + 1, x0:x1 + 1] = disp
+    comp, d = _boxes((100, 100), [(10, 39, 10, 49, 1, 20.0), (42, 47, 20, 30, 2, 18.5), (50, 79, 10, 39, 3, 17.0)])
     assert len(set(refdet.merge_fragments(comp, d, 3, 8, 0.1)[1:].tolist())) == 1  # single linkage: one chain
     r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=0.5)
     assert r[1] == r[2] != r[3]
-    comp[:] = 0
-    d[:] = np.nan
-    for (x0, x1, y0, y1, lab, disp) in [(10, 39, 10, 49, 1, 20.0), (20, 25, 51, 56, 2, 18.5), (12, 37, 60, 79, 3, 17.0)]:
-        comp[y0:y1 + 1, x0:x1 + 1] = lab
-        d[y0:y1 + 1, x0:x1 + 1] = disp
+    comp, d = _boxes((100, 100), [(10, 39, 10, 49, 1, 20.0), (20, 25, 51, 56, 2, 18.5), (12, 37, 60, 79, 3, 17.0)])
     r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=0.5)
     assert r[1] == r[2] == r[3]
     r = refdet.merge_fragments(comp, d, 3, 8, 0.1, bridge_px=500, bridge_overlap=1.0)

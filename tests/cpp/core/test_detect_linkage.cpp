@@ -32,36 +32,48 @@ DetectParams isolated() {  // only fragment merging acts
 
 const StereoCalib kCalib{200.0, 50.0, 30.0, 0.1, 0.5, 0.0};
 
+// The bridge scene: A at d = 20 px (Q4 320, 1200 px), B at 17 px (272, 900 px, 15 % farther), 10 columns
+// apart (farther than merge_gap_px), and a 6x11 bridge C at 18.5 px (296, 66 px) between them: within 10 %
+// of both (7.5 % and 8.1 %).
+struct BridgeScene {
+  ImageI32 comp{100, 60, 0};
+  ImageI16 disp{100, 60, kInvalidDisp};
+  BridgeScene() {
+    fill(comp, disp, 1, 10, 10, 39, 49, 320);
+    fill(comp, disp, 2, 42, 20, 47, 30, 296);
+    fill(comp, disp, 3, 50, 10, 79, 39, 272);
+  }
+};
+
+// A with the bridge, and B apart (nearest first).
+void expect_bridge_joins_a_only(const std::vector<Obstacle>& o, const ImageI32& labels) {
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].x0, 10);
+  EXPECT_EQ(o[0].x1, 47);
+  EXPECT_EQ(o[0].pixel_count, 1200 + 66);
+  EXPECT_EQ(o[0].disparity_q4, 320);
+  EXPECT_EQ(o[1].x0, 50);
+  EXPECT_EQ(o[1].x1, 79);
+  EXPECT_EQ(o[1].pixel_count, 900);
+  EXPECT_EQ(o[1].disparity_q4, 272);
+  EXPECT_EQ(labels.at(45, 25), 1);
+  EXPECT_EQ(labels.at(60, 20), 2);
+}
+
 TEST(DetectLinkage, BridgeFragmentNoLongerChainsTwoObstacles) {
-  // A at d = 20 px (Q4 320), B at 17 px (272, 15 % farther), 10 columns apart (farther than merge_gap_px), and
-  // a 6x11 bridge C at 18.5 px (296) between them: within 10 % of both (7.5 % and 8.1 %).
-  ImageI32 comp(100, 60, 0);
-  ImageI16 disp(100, 60, kInvalidDisp);
-  fill(comp, disp, 1, 10, 10, 39, 49, 320);
-  fill(comp, disp, 2, 42, 20, 47, 30, 296);
-  fill(comp, disp, 3, 50, 10, 79, 39, 272);
+  const BridgeScene sc;
   DetectParams p = isolated();
   p.merge_group_max_rel = 0.0;  // single linkage: A - C - B is one chain
-  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr);
+  auto o = detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, nullptr);
   ASSERT_EQ(o.size(), 1u);
   EXPECT_EQ(o[0].x0, 10);
   EXPECT_EQ(o[0].x1, 79);
   p.merge_group_max_rel = 0.12;  // A + C spans 7.5 %; adding B would span 15 %: refused
   p.merge_attach = true;         // and B (15 % from the group's median) does not attach
   ImageI32 labels;
-  o = detect::measure_obstacles(comp, 3, disp, kCalib, p, &labels);
-  ASSERT_EQ(o.size(), 2u);
-  EXPECT_EQ(o[0].x0, 10);  // nearest first: A with the bridge
-  EXPECT_EQ(o[0].x1, 47);
-  EXPECT_EQ(o[0].pixel_count, 1200 + 66);
-  EXPECT_EQ(o[0].disparity_q4, 320);
-  EXPECT_EQ(o[1].x0, 50);
-  EXPECT_EQ(o[1].x1, 79);
-  EXPECT_EQ(o[1].disparity_q4, 272);
-  EXPECT_EQ(labels.at(45, 25), 1);
-  EXPECT_EQ(labels.at(60, 20), 2);
+  expect_bridge_joins_a_only(detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, &labels), labels);
   p.merge_group_max_rel = 0.16;  // a span limit above the 15 %: one chain again
-  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+  EXPECT_EQ(detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, nullptr).size(), 1u);
 }
 
 TEST(DetectLinkage, FragmentRefusedBySpanAttachesToNearestGroup) {
@@ -149,33 +161,19 @@ TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
 }
 
 TEST(DetectLinkage, SmallBridgeNoLongerJoinsObstaclesSideBySide) {
-  // The first test's scene (A 1200 px at Q4 320, B 900 px at 272, 15 % farther, 10 columns apart; a 66-px bridge
-  // C at 296 within 10 % of both), now with single linkage and merge_bridge_max_px: C joins its anchor A (the
-  // closer pair, 7.5 % against 8.1 %) and not B, whose median is 15 % from A's and which stands beside A.
-  ImageI32 comp(100, 60, 0);
-  ImageI16 disp(100, 60, kInvalidDisp);
-  fill(comp, disp, 1, 10, 10, 39, 49, 320);
-  fill(comp, disp, 2, 42, 20, 47, 30, 296);
-  fill(comp, disp, 3, 50, 10, 79, 39, 272);
+  // The bridge scene with single linkage and merge_bridge_max_px: C joins its anchor A (the closer pair,
+  // 7.5 % against 8.1 %) and not B, whose median is 15 % from A's and which stands beside A.
+  const BridgeScene sc;
   DetectParams p = isolated();
   p.merge_group_max_rel = 0.0;
   p.merge_bridge_max_px = 0;  // off: plain single linkage, A - C - B is one box
-  ASSERT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+  ASSERT_EQ(detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, nullptr).size(), 1u);
   p.merge_bridge_max_px = 500;
   p.merge_bridge_max_overlap = 0.5;
   ImageI32 labels;
-  auto o = detect::measure_obstacles(comp, 3, disp, kCalib, p, &labels);
-  ASSERT_EQ(o.size(), 2u);
-  EXPECT_EQ(o[0].x0, 10);
-  EXPECT_EQ(o[0].x1, 47);
-  EXPECT_EQ(o[0].pixel_count, 1200 + 66);
-  EXPECT_EQ(o[0].disparity_q4, 320);
-  EXPECT_EQ(o[1].x0, 50);
-  EXPECT_EQ(o[1].pixel_count, 900);
-  EXPECT_EQ(labels.at(45, 25), 1);
-  EXPECT_EQ(labels.at(60, 20), 2);
+  expect_bridge_joins_a_only(detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, &labels), labels);
   p.merge_bridge_max_px = 50;  // C (66 px) is large itself: its direct pairs link as before
-  EXPECT_EQ(detect::measure_obstacles(comp, 3, disp, kCalib, p, nullptr).size(), 1u);
+  EXPECT_EQ(detect::measure_obstacles(sc.comp, 3, sc.disp, kCalib, p, nullptr).size(), 1u);
 }
 
 TEST(DetectLinkage, SmallBridgeStillJoinsAPieceInTheSameColumns) {
