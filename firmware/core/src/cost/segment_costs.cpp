@@ -280,12 +280,6 @@ void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, cons
   }
 }
 
-// Lower bound of the K-th largest prescore: the K-th largest of the maxima of M = 2K disjoint
-// classes of disparities (K values at distinct positions, one per class, are >= it; M = K when
-// D < 4K); 0 when D < 2K. The classes are the residues d mod M, so the class maxima are one
-// vertical max over rows of M lanes (vectorises, M = 16 for the default K = 8 has its own
-// fixed-width loop), and neighbouring disparities — a prescore peak is a few d wide — fall into
-// different classes, which keeps the bound close to the K-th value.
 // The K-th largest of m values: the one whose rank (number of values before it in the order
 // value desc, index asc) is K - 1. Branch-free all-pairs ranks; for m = 16 a few vector
 // instructions instead of nth_element's data-dependent branches.
@@ -299,6 +293,12 @@ inline std::uint32_t kth_largest(const std::uint32_t* v, int m, int K) {
   return out;
 }
 
+// Lower bound of the K-th largest prescore: the K-th largest of the maxima of M = 2K disjoint
+// classes of disparities (K values at distinct positions, one per class, are >= it; M = K when
+// D < 4K); 0 when D < 2K. The classes are the residues d mod M, so the class maxima are one
+// vertical max over rows of M lanes (vectorises, M = 16 for the default K = 8 has its own
+// fixed-width loop), and neighbouring disparities — a prescore peak is a few d wide — fall into
+// different classes, which keeps the bound close to the K-th value.
 FS_TARGET_CLONES
 std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, int K) {
   if (D < 2 * K || K > 32) return 0;
