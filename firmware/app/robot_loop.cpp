@@ -91,7 +91,7 @@ StageStat stat_of(std::vector<double> v) {
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
-      look_before_turn_m, moving_travel_sigmas, static_track_dwell_s;
+      look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m;
   int moving_min_hits, static_track_cells, look_min_hits;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
 };
@@ -112,6 +112,8 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
   p.static_track_dwell_s = v.num("loop.static_track_dwell_s");
+  p.static_track_born_s = v.num("loop.static_track_born_s");
+  p.static_track_born_max_travel_m = v.num("loop.static_track_born_max_travel_m");
   p.static_track_no_growth = v.flag("loop.static_track_no_growth");
   p.reach_travel_rate = v.flag("loop.reach_travel_rate");
   p.reach_travel_noise_sigmas = v.num("loop.reach_travel_noise_sigmas");
@@ -416,7 +418,8 @@ LoopResult RobotLoop::run() {
   int blocked_run = 0;
   robot::ObstacleMap world_map;
   // Static support of a track (see the planning step below; robot::has_static_support).
-  const robot::StaticSupportParams ssp{lp.static_track_cells, lp.static_track_lag_s, lp.static_track_dwell_s};
+  const robot::StaticSupportParams ssp{lp.static_track_cells, lp.static_track_lag_s, lp.static_track_dwell_s,
+                                       lp.static_track_born_s, lp.static_track_born_max_travel_m};
   const auto support_cells = [&](const robot::Track& tr) {
     return robot::static_support_cells(world_map, tr, lp.static_track_lag_s);
   };

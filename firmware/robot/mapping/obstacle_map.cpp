@@ -32,6 +32,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     nhit_.assign(nn, 0);
     stamp_.assign(nn, 0);
     since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
+    first_scan_ns_ = scan.t_ns;
     init_ = true;
   }
   ++frame_;

@@ -2,6 +2,7 @@
 // cells outside the view or beyond a column's free range are left alone, window queries.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "fuzzystereo/robot/obstacle_map.hpp"
@@ -114,6 +115,64 @@ TEST(StaticSupport, DwellSupportsTracksBornWithTheirCells) {
     mv.last_meas_p = {3.0, y + 0.025};
     EXPECT_FALSE(has_static_support(map, mv, dwell)) << k;
   }
+}
+
+// static_track_born_s: a track born with the map (no history to test) is supported while the cells
+// at its birthplace stay occupied and it stays near it; a mover that leaves its birthplace in view
+// is seen through there and loses the support; a track born later, or one that travelled, gets none.
+TEST(StaticSupport, BornWithTheMapKeepsStaticObstaclesNotMoversThatLeave) {
+  ObstacleMap map;
+  const std::int64_t s = 1'000'000'000;
+  StaticSupportParams born{2, 1.0, 0.0, 2.0, 1.0};
+  StaticSupportParams off = born;
+  off.born_s = 0.0;
+  Track post;  // on a wall at x = 2, seen from the first frame on
+  post.radius_m = 0.1;
+  post.first_meas_ns = 0;
+  post.first_meas_p = post.last_meas_p = {2.0, 0.07};
+  Track mover = post;  // at x = 3, y = 0.5 at the start, walks 0.6 m along +y at 0.5 m/s, then stands
+  mover.first_meas_p = mover.last_meas_p = {3.0, 0.5};
+  for (int k = 0; k <= 30; ++k) {  // 0 .. 3 s at 10 Hz
+    CameraScan sc = scan_at({0, 0, 0}, 0.0);
+    sc.t_ns = k * s / 10;
+    sc.hits = {{2.0, 0.0}, {2.0, 0.07}, {2.0, 0.14}};
+    const double my = 0.5 + 0.05 * std::min(k, 12);
+    sc.hits.push_back({3.0, my});
+    sc.hits.push_back({3.0, my + 0.05});
+    // Each column sees free space up to the first surface on it: the wall (x = 2), the mover
+    // (x = 3) or nothing up to 4 m (so the mover's birthplace is seen through once it has left).
+    for (int c = 0; c < 64; ++c) {
+      const double t = std::tan(std::atan2(31.5 - c, 40.0));
+      const bool wall = 2.0 * t > -0.1 && 2.0 * t < 0.25, on_mover = 3.0 * t > my - 0.1 && 3.0 * t < my + 0.15;
+      sc.free_range_m[std::size_t(c)] = wall ? 1.95 : on_mover ? 2.95 : 4.0;
+    }
+    map.integrate(sc);
+    post.last_meas_ns = mover.last_meas_ns = sc.t_ns;
+    mover.last_meas_p = {3.0, my + 0.025};
+    EXPECT_TRUE(has_static_support(map, post, born)) << k;
+    EXPECT_FALSE(has_static_support(map, post, off)) << k;  // born with its cells: the lag test cannot hold
+    if (k >= 12) {  // its birthplace seen through, its new cells occupied, 0.6 m travelled
+      EXPECT_FALSE(has_static_support(map, mover, born)) << k;
+      if (k >= 20) {
+        EXPECT_GE(map.occupied_before(mover.last_meas_p, 0.15, sc.t_ns), 2) << k;
+      }
+    }
+  }
+  EXPECT_EQ(map.first_scan_ns(), 0);
+  // The same post, first measured after the born window (3 s > 2 s), needs the lag test instead.
+  Track late = post;
+  late.first_meas_ns = 3 * s;
+  EXPECT_FALSE(has_static_support(map, late, StaticSupportParams{2, 5.0, 0.0, 2.0, 1.0}));
+  // A track whose measurements are 1.2 m apart is not a static obstacle's jitter.
+  Track far = post;
+  far.first_meas_p = {2.0, -1.13};
+  map.integrate([&] {
+    CameraScan sc = scan_at({0, 0, 0}, 0.0);
+    sc.t_ns = 31 * s / 10;
+    sc.hits = {{2.0, -1.13}, {2.0, -1.08}};
+    return sc;
+  }());
+  EXPECT_FALSE(has_static_support(map, far, born));
 }
 
 TEST(ObstacleMap, SeeingThroughACellClearsItOnlyAfterEnoughFrames) {

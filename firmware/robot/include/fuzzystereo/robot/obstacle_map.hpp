@@ -53,6 +53,8 @@ class ObstacleMap {
   // occupied when it arrives, a static obstacle's were there before (docs/robot.md, "Static
   // support of a track").
   int occupied_before(Vec2 c, double r, std::int64_t t_ns) const;
+  // Capture time of the first scan integrated (the map knows nothing older); 0 before any scan.
+  std::int64_t first_scan_ns() const { return first_scan_ns_; }
   const ObstacleMapParams& params() const { return p_; }
 
  private:
@@ -69,6 +71,7 @@ class ObstacleMap {
   std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
   std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
   std::uint32_t frame_ = 0;
+  std::int64_t first_scan_ns_ = 0;
 };
 
 }  // namespace fs::robot

@@ -14,6 +14,8 @@ struct StaticSupportParams {
   int cells = 2;         // [loop] static_track_cells: map cells needed (0 = the test is off)
   double lag_s = 1.0;    // [loop] static_track_lag_s
   double dwell_s = 0.0;  // [loop] static_track_dwell_s (0 = off)
+  double born_s = 0.0;   // [loop] static_track_born_s (0 = off)
+  double born_max_travel_m = 1.0;  // [loop] static_track_born_max_travel_m
 };
 
 // Map cells within the track's radius + 5 cm of its last measured position, occupied without a
@@ -25,6 +27,13 @@ int static_support_cells(const ObstacleMap& map, const Track& tr, double lag_s);
 // obstacle stood where it is now for that long. The first test cannot hold for tracks born
 // together with their map cells (the start of a run, a newly seen area), which would otherwise
 // stay unsupported for life; a mover that keeps moving has fresh cells at its last position.
+//
+// (born_s > 0) A track born within born_s of the map's first scan — before the map could hold any
+// history of that place — also has support when the cells at its *first* measured position have
+// stayed occupied without a break since that measurement, the cells at its last measured position
+// are occupied, and it has travelled at most born_max_travel_m between the two. A static
+// obstacle's cells stay; a mover that leaves its birthplace in view is seen through there and
+// loses them (docs/robot.md, "Session 11").
 bool has_static_support(const ObstacleMap& map, const Track& tr, const StaticSupportParams& p);
 
 }  // namespace fs::robot
