@@ -142,6 +142,15 @@ void BM_BlockEntropy(benchmark::State& st) {
 }
 BENCHMARK(BM_BlockEntropy)->Unit(benchmark::kMillisecond);
 
+// The right-reference WTA map (no eq. (13) holes): ESR's other entropy image.
+void BM_BlockEntropyRight(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(r.disp_right_wta, p.esr.window, kD));
+}
+BENCHMARK(BM_BlockEntropyRight)->Unit(benchmark::kMillisecond);
+
 void BM_Densify(benchmark::State& st) {
   const auto p = params();
   const fs::Matcher m(p, fs::load_fis_definition(""));
