@@ -136,9 +136,7 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
 // ---- esr/ -----------------------------------------------------------------------------------
 // eq. (14): Shannon entropy [bit] of the integer disparities in a w x w block around every pixel
 // (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
-// need (optional, same size): the entropy is computed only where need != 0 (0 elsewhere); the
-// window still slides through short gaps between needed pixels and is rebuilt after long ones.
-ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need = nullptr);
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity);
 // Mean disparity (Q4) of the valid pixels of a w x w block around every pixel (integral image).
 ImageI16 block_mean(const ImageI16& disp, int window);
 // eq. (15): replace d with the mean of the lower-entropy block when |E_l - E_r| > tau.

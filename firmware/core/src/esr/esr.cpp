@@ -19,7 +19,7 @@
 
 namespace fs {
 
-ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need) {
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
@@ -108,41 +108,15 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, cons
         else          { sum_t -= Tp[c] - Tp[c - uk]; c -= uk; n -= uk; }
       }
     };
-    // With `need`, the block is brought to x only where the entropy is needed: stepped column by
-    // column from the block held (centred at `held`) when that is at most `window` steps back
-    // (2 columns a step at most), else emptied and rebuilt (2 * window columns). The histogram at
-    // x is the same either way, so are the integer sums and the result.
-    const std::uint8_t* __restrict nrow = need ? need->row(y) : nullptr;
-    int held = -1;  // the block the histogram holds is centred at x = held (-1: the one left of x = 0)
-    // Moves the block one column to the right, to centre x (from x - 1).
-    auto step = [&](int x) {
-      const bool leave = x - r - 1 >= 0, enter = x + r < w;
-      if (leave && enter && srow[x + r] >= nr) return false;  // the same column leaves and enters
-      if (leave) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
-      if (enter) add_col(x + r, +1);
-      return true;
-    };
     for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);
-    bool changed = true;   // the histogram changed since `last` was computed
-    std::int32_t last = 0;  // the entropy last computed in this row
     for (int x = 0; x < w; ++x) {
-      if (nrow) {
-        if (!nrow[x]) continue;
-        if (x - held > window) {  // rebuild: empty the held block, add the one centred at x - 1
-          for (int c = std::max(0, held - r); c <= std::min(w - 1, held + r); ++c) add_col(c, -1);
-          for (int c = std::max(0, x - r - 1); c <= std::min(w - 1, x + r - 1); ++c) add_col(c, +1);
-          held = x - 1;
-          changed = true;
-        }
-        while (held < x - 1) changed |= step(++held);
-      }
-      held = x;
-      changed |= step(x);
-      if (!changed) {  // the same histogram as where `last` was computed
-        o[x] = last;
+      const bool leave = x - r - 1 >= 0, enter = x + r < w;
+      if (leave && enter && srow[x + r] >= nr) {  // the same column leaves and enters
+        o[x] = o[x - 1];
         continue;
       }
-      changed = false;
+      if (leave) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
+      if (enter) add_col(x + r, +1);
       // eq. (14): detail::entropy_q16's integer quotient, by the reciprocal (windows <= 9), a
       // 32-bit division when the table fits (w <= 33: T[w^2] < 2^32) or the 64-bit one.
       if (reciprocal) {
@@ -155,7 +129,6 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, cons
       } else {
         o[x] = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
       }
-      last = o[x];
     }
   }
   return out;
@@ -236,28 +209,10 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
   const int w = disp_lr.width, h = disp_lr.height, r = p.window / 2;
   // Left and right block entropies are independent (0 = the thread count set by the matcher).
   // The block means (block_mean) are taken only where a pixel is replaced.
-  // eq. (15) reads E_l at the valid left pixels and E_r at their partners only (about half of a
-  // KITTI frame each): the entropies are computed there (block_entropy's `need`).
-  ImageU8 need_l(w, h, 0), need_r(w, h, 0);
-#if defined(FS_HAVE_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-  for (int y = 0; y < h; ++y) {
-    const std::int16_t* d = disp_lr.row(y);
-    std::uint8_t* nl = need_l.row(y);
-    std::uint8_t* nr = need_r.row(y);
-    for (int x = 0; x < w; ++x) {
-      if (d[x] == kInvalidDisp) continue;
-      const int xr = partner_x(x, d[x]);
-      if (xr < 0 || xr >= w) continue;
-      nl[x] = 1;
-      nr[xr] = 1;
-    }
-  }
   ImageI32 El, Er;
   detail::run_pair(
-      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l); },
-      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r); });
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out = disp_lr;
   if (replaced) *replaced = ImageU8(w, h, 0);
