@@ -134,22 +134,16 @@ void BM_Esr(benchmark::State& st) {
 }
 BENCHMARK(BM_Esr)->Unit(benchmark::kMillisecond);
 
+// Arg 0: the left map after eq. (13); 1: the right-reference WTA map (no eq. (13) holes), ESR's
+// other entropy image.
 void BM_BlockEntropy(benchmark::State& st) {
   const auto p = params();
   const fs::Matcher m(p, fs::load_fis_definition(""));
   const auto r = m.match(pair().left, pair().right);
-  for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(r.disp_lr, p.esr.window, kD));
+  const fs::ImageI16& d = st.range(0) == 0 ? r.disp_lr : r.disp_right_wta;
+  for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(d, p.esr.window, kD));
 }
-BENCHMARK(BM_BlockEntropy)->Unit(benchmark::kMillisecond);
-
-// The right-reference WTA map (no eq. (13) holes): ESR's other entropy image.
-void BM_BlockEntropyRight(benchmark::State& st) {
-  const auto p = params();
-  const fs::Matcher m(p, fs::load_fis_definition(""));
-  const auto r = m.match(pair().left, pair().right);
-  for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(r.disp_right_wta, p.esr.window, kD));
-}
-BENCHMARK(BM_BlockEntropyRight)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BlockEntropy)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_Densify(benchmark::State& st) {
   const auto p = params();
