@@ -193,7 +193,8 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
   // Left and right block entropies and means are independent (0 = the thread count set by the
   // matcher). The means are whole images (separable running sums, a few operations a pixel): on
   // KITTI eq. (15) replaces ~20 % of the pixels, and a per-pixel w x w sum there cost more
-  // (session 11: ESR / segmentation time 0.62 -> 0.58 at 1 thread, 0.60 -> 0.50 at 2).
+  // (session 11, six interleaved bench runs: ESR / segmentation time 0.565 -> 0.500 at 1 thread,
+  // 0.582 -> 0.518 at 2; docs/results.md "Speed, session 11").
   ImageI32 El, Er;
   ImageI16 Ml, Mr;
   detail::run_pair(
