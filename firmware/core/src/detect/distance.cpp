@@ -54,6 +54,10 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     while (parent[std::size_t(c)] != c) c = parent[std::size_t(c)] = parent[std::size_t(parent[std::size_t(c)])];
     return c;
   };
+  auto unite = [&](int c1, int c2) {  // the smaller root stays the root
+    const int r1 = find(c1), r2 = find(c2);
+    if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+  };
   if (p.merge_gap_px >= 0 && p.merge_max_rel_disparity > 0) {
     const int g = p.merge_gap_px, gv = std::max(p.merge_gap_px, p.merge_gap_vertical_px);
     struct Pair {
@@ -70,8 +74,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
         const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
         if (std::abs(m1 - m2) > p.merge_max_rel_disparity * std::max(m1, m2)) continue;
         if (p.merge_group_max_rel <= 0 && p.merge_bridge_max_px <= 0) {  // single linkage (order-free)
-          const int r1 = find(c1), r2 = find(c2);
-          if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+          unite(c1, c2);
         } else {
           pairs.push_back({std::abs(m1 - m2), std::max<std::int64_t>(1, std::max(m1, m2)), c1, c2});
         }
@@ -88,10 +91,6 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
     // medians only: the joins do not depend on their order.
     if (p.merge_group_max_rel <= 0 && p.merge_bridge_max_px > 0) {
       auto big = [&](int c) { return acc[std::size_t(c)].n >= p.merge_bridge_max_px; };
-      auto unite = [&](int c1, int c2) {
-        const int r1 = find(c1), r2 = find(c2);
-        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
-      };
       for (const Pair& q : pairs)
         if (big(q.c1) == big(q.c2)) unite(q.c1, q.c2);
       // Per small group (its root after the small-small joins): the anchor.
@@ -238,8 +237,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
         if (2 * ov < std::min(a.y1 - a.y0 + 1, b.y1 - b.y0 + 1)) continue;
         const int e1 = rm[std::size_t(c1)], e2 = lm[std::size_t(c2)];
         if (std::abs(e1 - e2) > p.merge_edge_rel_disparity * std::max(e1, e2)) continue;
-        const int r1 = find(c1), r2 = find(c2);
-        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+        unite(c1, c2);
       }
     }
     absorb();
@@ -286,8 +284,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
         }
         // Up to merge_gap_px uncovered columns are allowed (box edges of neighbours need not meet).
         if (std::count(cover.begin(), cover.end(), 0) > std::max(p.merge_gap_px, 0)) continue;
-        const int r1 = find(c1), r2 = find(c2);
-        parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+        unite(c1, c2);
       }
     }
     absorb();
@@ -352,8 +349,7 @@ std::vector<Obstacle> measure_obstacles(const ImageI32& components, int count, c
       }
       const int m1 = med[std::size_t(c1)], m2 = med[std::size_t(c2)];
       if (std::abs(m1 - m2) <= p.contain_merge_rel_disparity * std::max(m1, m2)) {
-        const int r1 = find(c1), r2 = find(c2);
-        if (r1 != r2) parent[std::size_t(std::max(r1, r2))] = std::min(r1, r2);
+        unite(c1, c2);
       } else if (acc[std::size_t(c1)].n < p.contain_drop_max_px && (!p.contain_drop_nearer_only || m1 > m2)) {
         drop.push_back(c1);
       }
