@@ -150,36 +150,64 @@ void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t*
   }
 }
 
-// eq. (2)-(4) for kNmiGroup (= 4) candidates: sum_c T[c] over the joint histograms (bin of l, bin
-// of the candidate's partner) and over the partners' histograms, by one pass of increments
-// c -> c + 1, each adding DT[c] = T[c + 1] - T[c] (telescoping, exact). Sums in local registers,
-// not arrays: kept in memory, each += would be a store-to-load chain per pixel.
-static_assert(kNmiGroup == 4, "nmi_group_sums is written for 4 candidates");
-void nmi_group_sums(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
-                    std::uint32_t* __restrict joint, std::uint32_t* __restrict hy, const std::uint32_t* __restrict DT,
-                    std::uint64_t* sum_txy, std::uint64_t* sum_ty) {
+// eq. (2)-(4) for kNmiGroup (= 4) candidates, in two passes:
+//   1. histograms: per pixel one increment of each candidate's joint histogram (bin of l, bin of
+//      the candidate's partner) and of its partner histogram — a single read-modify-write each;
+//   2. sums: sum_c T[c] over each histogram, reading every nonzero cell once and clearing it for
+//      the next group (T[0] = 0, so the zero cells add nothing and need no branch).
+// Pass 2 walks whichever is shorter: the joint histograms' touched rows (bx_lo .. bx_hi, cell by
+// cell), or the pixel list again (each pixel's cell, read and cleared: a cell's count is taken by
+// its first pixel, the rest read 0). Both give the same integers as summing T over the histogram.
+static_assert(kNmiGroup == 4, "nmi_group_histograms is written for 4 candidates");
+void nmi_group_histograms(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
+                          std::uint32_t* __restrict joint, std::uint32_t* __restrict hy) {
   const std::size_t BB = std::size_t(B) * std::size_t(B);
   std::uint32_t* __restrict j0 = joint;
   std::uint32_t* __restrict j1 = joint + BB;
   std::uint32_t* __restrict j2 = joint + 2 * BB;
   std::uint32_t* __restrict j3 = joint + 3 * BB;
   const std::uint8_t *b0 = bin[0], *b1 = bin[1], *b2 = bin[2], *b3 = bin[3];
-  std::uint64_t x0 = 0, x1 = 0, x2 = 0, x3 = 0, y0 = 0, y1 = 0, y2 = 0, y3 = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t off = static_cast<std::size_t>(px[i].off);
     const std::size_t row = std::size_t(px[i].bx) * std::size_t(B);
     const std::size_t c0 = b0[off], c1 = b1[off], c2 = b2[off], c3 = b3[off];
-    std::uint32_t& a0 = j0[row + c0]; x0 += DT[a0]; ++a0;
-    std::uint32_t& a1 = j1[row + c1]; x1 += DT[a1]; ++a1;
-    std::uint32_t& a2 = j2[row + c2]; x2 += DT[a2]; ++a2;
-    std::uint32_t& a3 = j3[row + c3]; x3 += DT[a3]; ++a3;
-    std::uint32_t& h0 = hy[c0]; y0 += DT[h0]; ++h0;
-    std::uint32_t& h1 = hy[std::size_t(B) + c1]; y1 += DT[h1]; ++h1;
-    std::uint32_t& h2 = hy[2 * std::size_t(B) + c2]; y2 += DT[h2]; ++h2;
-    std::uint32_t& h3 = hy[3 * std::size_t(B) + c3]; y3 += DT[h3]; ++h3;
+    ++j0[row + c0];
+    ++j1[row + c1];
+    ++j2[row + c2];
+    ++j3[row + c3];
+    ++hy[c0];
+    ++hy[std::size_t(B) + c1];
+    ++hy[2 * std::size_t(B) + c2];
+    ++hy[3 * std::size_t(B) + c3];
+  }
+}
+
+// sum_c T[c] over cells[0 .. count), clearing them.
+inline std::uint64_t take_sum_t(std::uint32_t* __restrict cells, std::size_t count, const std::uint64_t* __restrict T) {
+  std::uint64_t s = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    s += T[cells[i]];
+    cells[i] = 0;
+  }
+  return s;
+}
+
+// sum_c T[c] over the joint histograms of the group through the pixel list (pass 2, pixel walk).
+void take_joint_sums_by_pixels(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
+                               std::uint32_t* __restrict joint, const std::uint64_t* __restrict T,
+                               std::uint64_t* sum_txy) {
+  const std::size_t BB = std::size_t(B) * std::size_t(B);
+  const std::uint8_t *b0 = bin[0], *b1 = bin[1], *b2 = bin[2], *b3 = bin[3];
+  std::uint64_t x0 = 0, x1 = 0, x2 = 0, x3 = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t off = static_cast<std::size_t>(px[i].off);
+    const std::size_t row = std::size_t(px[i].bx) * std::size_t(B);
+    std::uint32_t& a0 = joint[row + b0[off]];          x0 += T[a0]; a0 = 0;
+    std::uint32_t& a1 = joint[BB + row + b1[off]];     x1 += T[a1]; a1 = 0;
+    std::uint32_t& a2 = joint[2 * BB + row + b2[off]]; x2 += T[a2]; a2 = 0;
+    std::uint32_t& a3 = joint[3 * BB + row + b3[off]]; x3 += T[a3]; a3 = 0;
   }
   sum_txy[0] = x0; sum_txy[1] = x1; sum_txy[2] = x2; sum_txy[3] = x3;
-  sum_ty[0] = y0; sum_ty[1] = y1; sum_ty[2] = y2; sum_ty[3] = y3;
 }
 
 // Partner-only sums of a segment for all d, from the row prefix sums: run i covers O[lo + d ..
@@ -384,10 +412,6 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
   std::int32_t max_pixels = 0;
   for (auto n : seg.pixels) max_pixels = std::max(max_pixels, n);
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(max_pixels));
-  // DT[c] = T[c + 1] - T[c] (Q16, < (log2(c + 1) + 1.45) * 2^16 < 2^32): the change of sum_c T[c]
-  // when one count goes c -> c + 1.
-  std::vector<std::uint32_t> DT(T.size() > 1 ? T.size() - 1 : 1, 0);
-  for (std::size_t i = 0; i + 1 < T.size(); ++i) DT[i] = static_cast<std::uint32_t>(T[i + 1] - T[i]);
   const int K = (p.nmi_candidates <= 0 || p.nmi_candidates >= D) ? D : p.nmi_candidates;
   c.candidates_per_segment = K < D ? K : 0;
   c.candidates.resize(K < D ? std::size_t(seg.count) * std::size_t(K) : 0);
@@ -421,17 +445,18 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         std::fill(slr.begin(), slr.end(), 0); std::fill(sg.begin(), sg.end(), 0);
         std::fill(sr.begin(), sr.end(), 0); std::fill(srr.begin(), srr.end(), 0);
       }
-      std::fill(hx.begin(), hx.end(), 0);  // joint and hy are all-zero after each candidate
 
       // Pixel list, grey-value sums, H(x) histogram and the runs' partner spans. The partner-only
       // sums are taken over chunks of at most kFlushPixels pixels (int32 lanes); all but the last
       // chunk are added into the int64 sums, the last one stays in sr32/srr32.
-      px.clear();
+      std::size_t npx = 0;
+      for (const Run* r = r0; r != r1; ++r) npx += std::size_t(r->x1 - r->x0);
+      px.resize(npx);
+      SegPixel* __restrict out = px.data();
       spans.clear();
       std::int64_t sl = 0, sll = 0;
-      std::uint64_t sum_tx = 0;
       int since_flush = 0;
-      int bx_lo = B, bx_hi = -1;  // the rows of the joint histograms this segment can touch
+      const int step = direction > 0 ? -1 : 1;  // base_of(x + 1) - base_of(x)
       for (const Run* r = r0; r != r1; ++r) {
         const std::uint8_t* lrow = ref.row(r->y);
         const std::uint16_t* grow = ref_grad.row(r->y);
@@ -449,18 +474,29 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         const int hi = std::max(base_of(r->x0), base_of(r->x1 - 1)) + 1;
         const std::size_t pre_row = std::size_t(r->y) * std::size_t(pr.pre_stride);
         spans.push_back({pr.pre.data() + pre_row, pr.pre2.data() + pre_row, lo, hi});
-        for (int x = r->x0; x < r->x1; ++x) {
+        std::int32_t o = ro + base_of(r->x0);
+        std::int64_t rs = 0, rss = 0;  // the run's sums (< 2^31: len <= kFlushPixels)
+        for (int x = r->x0; x < r->x1; ++x, o += step) {
           const std::int32_t l = lrow[x];
-          sl += l;
-          sll += l * l;
+          rs += l;
+          rss += l * l;
           const auto bx = static_cast<std::uint8_t>((l * B) >> 8);
-          bx_lo = std::min<int>(bx_lo, bx);
-          bx_hi = std::max<int>(bx_hi, bx);
-          std::uint32_t& cx = hx[bx];
-          sum_tx += T[cx + 1] - T[cx];
-          ++cx;
-          px.push_back({ro + base_of(x), grow[x], static_cast<std::uint8_t>(l), bx});
+          ++hx[bx];
+          *out++ = {o, grow[x], static_cast<std::uint8_t>(l), bx};
         }
+        sl += rs;
+        sll += rss;
+      }
+      // H(x): sum_c T[c] over the grey-bin histogram (cleared for the next segment), and the rows
+      // of the joint histograms this segment can touch.
+      std::uint64_t sum_tx = 0;
+      int bx_lo = B, bx_hi = -1;
+      for (int b = 0; b < B; ++b) {
+        if (hx[std::size_t(b)] == 0) continue;
+        bx_lo = std::min(bx_lo, b);
+        bx_hi = b;
+        sum_tx += T[hx[std::size_t(b)]];
+        hx[std::size_t(b)] = 0;
       }
       accumulate_runs(spans.data(), static_cast<int>(spans.size()), D, sr32.data(), srr32.data());
       const auto n = static_cast<std::int64_t>(px.size());
@@ -513,36 +549,30 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
       }
 
       // eq. (2)-(4): NMI from the joint histogram, kNmiGroup candidates per pass over the pixel
-      // list (independent histograms, so their increment chains overlap). One pass: each increment
-      // c -> c + 1 adds DT[c] = T[c + 1] - T[c] to the running sum of T over the histogram, which
-      // telescopes to sum_c T[c] exactly (integers). The histograms are then cleared, by a memset
-      // when that is shorter than revisiting the hit bins. A short last group repeats its last
+      // list (independent histograms, so their increments overlap); the sums of T over the
+      // histograms then clear them (see nmi_group_histograms). A short last group repeats its last
       // candidate; the repeats are not stored.
       const std::uint64_t un = static_cast<std::uint64_t>(n);
       const std::uint64_t H_x = detail::entropy_q16(T, un, sum_tx);
       const std::size_t BB = std::size_t(B) * std::size_t(B);
       // Only rows bx_lo .. bx_hi of the joint histograms are touched (a segment's grey values span
-      // a few bins): those rows are cleared by memset unless revisiting the hit cells is shorter.
+      // a few bins): their cells are summed, unless walking the pixels again is shorter.
+      const std::size_t row0 = bx_hi >= bx_lo ? std::size_t(bx_lo) * std::size_t(B) : 0;
       const std::size_t touched = bx_hi >= bx_lo ? std::size_t(bx_hi - bx_lo + 1) * std::size_t(B) : 0;
-      const bool clear_by_memset = px.size() * 2 >= touched / 8;
+      const bool sum_by_cells = touched <= px.size();
       for (int k0 = 0; k0 < K; k0 += kNmiGroup) {
         const std::uint8_t* bin[kNmiGroup];
         for (int j = 0; j < kNmiGroup; ++j) bin[j] = pr.bin.data() + order[std::size_t(std::min(k0 + j, K - 1))];
         std::uint64_t sum_txy[kNmiGroup], sum_ty[kNmiGroup];
-        nmi_group_sums(px.data(), px.size(), bin, B, joint.data(), hy.data(), DT.data(), sum_txy, sum_ty);
-        if (clear_by_memset) {
+        nmi_group_histograms(px.data(), px.size(), bin, B, joint.data(), hy.data());
+        if (sum_by_cells) {
           for (int j = 0; j < kNmiGroup; ++j)
-            std::memset(joint.data() + std::size_t(j) * BB + std::size_t(bx_lo) * std::size_t(B), 0,
-                        touched * sizeof(std::uint32_t));
-          std::memset(hy.data(), 0, hy.size() * sizeof(std::uint32_t));
+            sum_txy[j] = take_sum_t(joint.data() + std::size_t(j) * BB + row0, touched, T.data());
         } else {
-          for (const SegPixel& q : px)
-            for (int j = 0; j < kNmiGroup; ++j) {
-              const int by = bin[j][q.off];
-              joint[std::size_t(j) * BB + std::size_t(q.bx * B + by)] = 0;
-              hy[std::size_t(j * B + by)] = 0;
-            }
+          take_joint_sums_by_pixels(px.data(), px.size(), bin, B, joint.data(), T.data(), sum_txy);
         }
+        for (int j = 0; j < kNmiGroup; ++j)
+          sum_ty[j] = take_sum_t(hy.data() + std::size_t(j) * std::size_t(B), std::size_t(B), T.data());
         for (int j = 0; j < kNmiGroup && k0 + j < K; ++j) {
           const int d = order[std::size_t(k0 + j)];
           const std::uint64_t H_y = detail::entropy_q16(T, un, sum_ty[j]);
