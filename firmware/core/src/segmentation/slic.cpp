@@ -23,19 +23,24 @@ struct Center {
 };
 
 // One centre's search window [x0, x1] x [y0, y1]: keep the closer centre per pixel (branch-free,
-// SIMD; one call per window so the clone dispatch and loop set-up are paid once per centre).
+// SIMD; one call per window so the clone dispatch and loop set-up are paid once per centre). The
+// spatial term (dx^2 + dy^2) * m^2 is read from `spatial`, the (2S+1) x (2S+1) table of every
+// offset from a centre (the same for all centres: their positions are integers), so a pixel costs
+// one multiplication (dI^2 * S^2) instead of three.
 FS_TARGET_CLONES
 void assign_window(const ImageU8& img, std::uint32_t* __restrict dist, ImageI32& labels, int x0, int x1, int y0, int y1,
-                   std::int32_t ci, std::int32_t cx, std::int32_t cy, std::uint32_t s2, std::uint32_t mm, std::int32_t k) {
-  const int w = img.width;
+                   std::int32_t ci, std::int32_t cx, std::int32_t cy, std::uint32_t s2, const std::uint32_t* spatial,
+                   int S, std::int32_t k) {
+  const int w = img.width, side = 2 * S + 1;
   for (int y = y0; y <= y1; ++y) {
     const std::uint8_t* __restrict r = img.row(y);
     std::uint32_t* __restrict dr = dist + std::size_t(y) * std::size_t(w);
     std::int32_t* __restrict lab = labels.row(y);
-    const auto dy2 = static_cast<std::uint32_t>((y - cy) * (y - cy));
+    // sp[x - x0] = (dx^2 + dy^2) * m^2 for dx = x - cx (x0 >= cx - S)
+    const std::uint32_t* __restrict sp = spatial + std::size_t(y - cy + S) * std::size_t(side) + std::size_t(x0 - cx + S);
     for (int x = x0; x <= x1; ++x) {
-      const std::int32_t di = r[x] - ci, dx = x - cx;
-      const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + (static_cast<std::uint32_t>(dx * dx) + dy2) * mm;
+      const std::int32_t di = r[x] - ci;
+      const std::uint32_t d = static_cast<std::uint32_t>(di * di) * s2 + sp[x - x0];
       const bool closer = d < dr[x];
       dr[x] = closer ? d : dr[x];
       lab[x] = closer ? k : lab[x];
@@ -113,6 +118,13 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
     for (int x = 0; x < w; ++x) gp[x + 1] = gp[x] + r[x];
   }
   std::vector<std::uint8_t> flags(std::size_t(w) + 8);
+  // The spatial term of D' for every offset (dx, dy) in [-S, S]^2 (see assign_window).
+  const int side = 2 * S + 1;
+  std::vector<std::uint32_t> spatial(std::size_t(side) * std::size_t(side));
+  for (int dy = -S; dy <= S; ++dy)
+    for (int dx = -S; dx <= S; ++dx)
+      spatial[std::size_t(dy + S) * std::size_t(side) + std::size_t(dx + S)] =
+          static_cast<std::uint32_t>(dx * dx + dy * dy) * static_cast<std::uint32_t>(m2);
   std::vector<std::int64_t> sx(centers.size()), sy(centers.size()), si(centers.size()), cnt(centers.size());
   for (int it = 0; it < p.iterations; ++it) {
     std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
@@ -122,7 +134,7 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
       const int y0 = std::max<int>(0, int(c.y) - S), y1 = std::min<int>(h - 1, int(c.y) + S);
       assign_window(img, dist.data(), labels, x0, x1, y0, y1, static_cast<std::int32_t>(c.i),
                     static_cast<std::int32_t>(c.x), static_cast<std::int32_t>(c.y), static_cast<std::uint32_t>(S2),
-                    static_cast<std::uint32_t>(m2), static_cast<std::int32_t>(k));
+                    spatial.data(), S, static_cast<std::int32_t>(k));
     }
     if (it + 1 == p.iterations) break;  // the labels are final; the last centre update is not needed
     // Update centres (integer rounded means). Unreached pixels (-1) keep no centre. Per row, a run
