@@ -91,9 +91,11 @@ StageStat stat_of(std::vector<double> v) {
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
-      look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m;
+      look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
+      meas_sigma_floor_m;
   int moving_min_hits, static_track_cells, look_min_hits;
-  bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks;
+  bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
+      silhouette_centres;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -122,6 +124,8 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.look_before_turn_m = v.num("loop.look_before_turn_m");
   p.look_live_tracks = v.flag("loop.look_live_tracks");
   p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
+  p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
+  p.silhouette_centres = v.flag("loop.silhouette_centres");
   return p;
 }
 
@@ -199,12 +203,27 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
     if (o.distance_m > lp.map_range_m + 0.5) continue;
     const double width_m = (o.x1 - o.x0 + 1) * o.distance_m / calib.focal_px;
     if (width_m > lp.track_max_width_m) continue;
-    const GroundPt g = ground_of(calib, 0.5 * (o.x0 + o.x1), 0.5 * (o.y0 + o.y1), o.disparity_q4 / static_cast<double>(kDispScale));
+    const double d_px = o.disparity_q4 / static_cast<double>(kDispScale);
+    const double v_mid = 0.5 * (o.y0 + o.y1);
+    const GroundPt g = ground_of(calib, 0.5 * (o.x0 + o.x1), v_mid, d_px);
     robot::ObstacleMeasurement m;
-    m.radius_m = 0.5 * width_m;
-    m.p = to_world(g.fwd + m.radius_m, g.left);  // the visible surface is the front: centre behind it
     m.distance_class = static_cast<int>(o.cls);
-    m.sigma_m = std::max(0.03, depth_sigma(calib, g.depth));
+    m.sigma_m = std::max(lp.meas_sigma_floor_m, depth_sigma(calib, g.depth));
+    if (lp.silhouette_centres) {
+      // The silhouette rays through the box's outer pixel edges, the front at the box centre
+      // (robot::circle_from_silhouette; the camera is at the robot's centre).
+      const GroundPt ea = ground_of(calib, o.x0 - 0.5, v_mid, d_px), eb = ground_of(calib, o.x1 + 0.5, v_mid, d_px);
+      const robot::SilhouetteCircle sc = robot::circle_from_silhouette(
+          std::atan2(ea.left, ea.fwd), std::atan2(eb.left, eb.fwd), std::hypot(g.fwd, g.left));
+      m.radius_m = sc.radius_m;
+      m.p = to_world(sc.centre.x, sc.centre.y);
+    } else {
+      // Camera-axis model (the default): half the box width at the front depth, the centre that far
+      // behind the front along the camera's forward axis. Biased towards the image centre by about
+      // r sin(bearing) (docs/robot.md "Session 12").
+      m.radius_m = 0.5 * width_m;
+      m.p = to_world(g.fwd + m.radius_m, g.left);
+    }
     meas.push_back(m);
   }
 }

@@ -15,6 +15,16 @@ namespace {
 constexpr double kSpeedGateSigmas = 4.0;
 }  // namespace
 
+SilhouetteCircle circle_from_silhouette(double bearing_a, double bearing_b, double front_range_m) {
+  const double tm = 0.5 * (bearing_a + bearing_b);
+  const double s = std::min(0.9, std::sin(0.5 * std::fabs(bearing_a - bearing_b)));
+  SilhouetteCircle c;
+  c.radius_m = front_range_m * s / (1.0 - s);
+  const double rho_c = front_range_m + c.radius_m;
+  c.centre = {rho_c * std::cos(tm), rho_c * std::sin(tm)};
+  return c;
+}
+
 std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
                                                     const VisibilityFn& visible) {
   // 1. predict every track to t (eq. 26).

@@ -547,6 +547,42 @@ def report_cmd(run_dir: Path, out: Path | None, max_frames: int) -> None:
     console.print(f"report: {path}")
 
 
+@app.command("track-errors", short_help="Tracker measurement and velocity errors of simulator run records.")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--min-hits", type=click.IntRange(1, 1000), default=4, show_default=True,
+              help="Velocity error only of confirmed tracks with at least this many hits.")
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the tables as JSON.")
+def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path | None) -> None:
+    """Measurement error by bearing (signed outward / forward) and velocity error of moving and
+    static obstacles' tracks, against the simulated world (fuzzystereo sim suite --record DIR)."""
+    import json as _json
+
+    from rich.table import Table
+
+    from .trackerrors import track_errors
+
+    r = track_errors(list(run_dirs), min_hits=min_hits)
+    fmt = lambda v: "-" if v is None else f"{v:+.3f}"  # noqa: E731
+    t = Table(title=f"measurement error of updated tracks (m), {r['records']} records")
+    for col in ("|bearing| deg", "n", "lateral (outward +)", "forward", "|error|"):
+        t.add_column(col, justify="right")
+    for row in r["measurement"]:
+        lo, hi = row["bearing_deg"]
+        t.add_row(f"{lo}-{hi}", str(row["n"]), fmt(row["lateral_outward_median_m"]), fmt(row["forward_median_m"]),
+                  "-" if row["abs_median_m"] is None else f"{row['abs_median_m']:.3f}")
+    console.print(t)
+    v = Table(title=f"velocity error of confirmed tracks (hits >= {min_hits}), m/s")
+    for col in ("obstacles", "n", "median", "p90"):
+        v.add_column(col, justify="right")
+    for kind, row in r["velocity"].items():
+        v.add_row(kind, str(row["n"]), "-" if row["median_mps"] is None else f"{row['median_mps']:.3f}",
+                  "-" if row["p90_mps"] is None else f"{row['p90_mps']:.3f}")
+    console.print(v)
+    if json_out is not None:
+        json_out.write_text(_json.dumps(r, indent=2) + "\n")
+        console.print(f"wrote {json_out}")
+
+
 # ---- main -----------------------------------------------------------------------------------
 
 

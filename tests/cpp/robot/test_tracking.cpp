@@ -92,6 +92,35 @@ TrackStats run_cv_trials(const TrackerParams& tp, double sigma, double dt, int f
   return {std::sqrt(se_f / static_cast<double>(np)), std::sqrt(se_r / static_cast<double>(np)), std::sqrt(se_v / static_cast<double>(nv)), verr[verr.size() * 95 / 100], verr.back()};
 }
 
+// A circle of radius r at range rho and bearing b: its silhouette rays are at b +- asin(r / rho)
+// and its front (nearest point) at rho - r. The model recovers centre and radius; the camera-axis
+// model used before session 12 (centre at the front's forward distance + half the width measured
+// at the front depth, perpendicular to the axis) is off by ~r sin(b) sideways at 45 deg.
+TEST(Tracker, SilhouetteCircleRecoversCentreAndRadiusAtAnyBearing) {
+  for (double b : {0.0, 0.3, -0.6, 0.85}) {
+    for (auto [rho, r] : {std::pair{1.0, 0.2}, {3.0, 0.15}, {0.6, 0.3}}) {
+      const double half = std::asin(r / rho);
+      const SilhouetteCircle c = circle_from_silhouette(b - half, b + half, rho - r);
+      SCOPED_TRACE(::testing::Message() << "bearing " << b << " range " << rho << " radius " << r);
+      EXPECT_NEAR(c.radius_m, r, 1e-9);
+      EXPECT_NEAR(c.centre.x, rho * std::cos(b), 1e-9);
+      EXPECT_NEAR(c.centre.y, rho * std::sin(b), 1e-9);
+      // The old model, for comparison: the image-plane width at the front's depth.
+      const double Z = (rho - r) * std::cos(b);
+      const double width = Z * (std::tan(b + half) - std::tan(b - half));
+      const double old_lat = Z * std::tan(b);
+      if (std::fabs(b) > 0.8) {
+        EXPECT_GT(std::fabs(old_lat - rho * std::sin(b)), 0.5 * r * std::fabs(std::sin(b)));
+        EXPECT_GT(0.5 * width, 1.3 * r);
+      }
+    }
+  }
+  // Degenerate inputs stay finite: equal bearings give a zero radius at the front range.
+  const SilhouetteCircle z = circle_from_silhouette(0.2, 0.2, 2.0);
+  EXPECT_DOUBLE_EQ(z.radius_m, 0.0);
+  EXPECT_NEAR(z.centre.x, 2.0 * std::cos(0.2), 1e-12);
+}
+
 TEST(Tracker, ConstantVelocityTargetsBeatRawMeasurements) {
   // 10 Hz frames, 5 cm position noise (stereo at a few metres), 100 seeded trajectories of 60 frames.
   TrackerParams tp;

@@ -22,6 +22,20 @@ struct ObstacleMeasurement {
   double sigma_m = 0;      // position std of this measurement [m]; 0 = TrackerParams::pos_sigma_m
 };
 
+// Measurement model of a round obstacle seen by the camera (at the origin of the frame): the two
+// silhouette rays through its box edges, at bearings bearing_a and bearing_b [rad], and the range of
+// its front surface between them, front_range_m. The circle tangent to both rays whose nearest point
+// on their bisector lies at front_range_m has its centre on the bisector at front_range_m + r, with
+// r = front_range_m * s / (1 - s), s = sin(half the angle between the rays). (Placing the centre at
+// the front's forward distance + half the box width along the camera's forward axis, as before
+// session 12, leaves out r sin(bearing) of its lateral offset and over-measures r by 1 / cos(bearing);
+// docs/robot.md "Session 12".) The half-angle is capped at asin(0.9) (r <= 9 x front range).
+struct SilhouetteCircle {
+  Vec2 centre;  // in the camera's ground-plane frame (x forward, y left) [m]
+  double radius_m = 0;
+};
+SilhouetteCircle circle_from_silhouette(double bearing_a, double bearing_b, double front_range_m);
+
 struct Track {
   int id = 0;
   CvKalman kf;
