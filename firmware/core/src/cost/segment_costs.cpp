@@ -159,6 +159,7 @@ void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t*
 // cell), or the pixel list again (each pixel's cell, read and cleared: a cell's count is taken by
 // its first pixel, the rest read 0). Both give the same integers as summing T over the histogram.
 static_assert(kNmiGroup == 4, "nmi_group_histograms is written for 4 candidates");
+template <bool kPartnerHistograms>
 void nmi_group_histograms(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
                           std::uint32_t* __restrict joint, std::uint32_t* __restrict hy) {
   const std::size_t BB = std::size_t(B) * std::size_t(B);
@@ -175,11 +176,28 @@ void nmi_group_histograms(const SegPixel* __restrict px, std::size_t n, const st
     ++j1[row + c1];
     ++j2[row + c2];
     ++j3[row + c3];
-    ++hy[c0];
-    ++hy[std::size_t(B) + c1];
-    ++hy[2 * std::size_t(B) + c2];
-    ++hy[3 * std::size_t(B) + c3];
+    if constexpr (kPartnerHistograms) {
+      ++hy[c0];
+      ++hy[std::size_t(B) + c1];
+      ++hy[2 * std::size_t(B) + c2];
+      ++hy[3 * std::size_t(B) + c3];
+    }
   }
+}
+
+// sum_c T[c] over the `rows` rows of B cells at `cells`, clearing them, and their column sums added
+// into col[0 .. B) (the partner histogram is the joint histogram's column sums).
+inline std::uint64_t take_sum_t_rows(std::uint32_t* __restrict cells, int rows, int B, const std::uint64_t* __restrict T,
+                                     std::uint32_t* __restrict col) {
+  std::uint64_t s = 0;
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < B; ++c) {
+      std::uint32_t& v = cells[std::size_t(r) * std::size_t(B) + std::size_t(c)];
+      s += T[v];
+      col[c] += v;
+      v = 0;
+    }
+  return s;
 }
 
 // sum_c T[c] over cells[0 .. count), clearing them.
@@ -564,11 +582,16 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
         const std::uint8_t* bin[kNmiGroup];
         for (int j = 0; j < kNmiGroup; ++j) bin[j] = pr.bin.data() + order[std::size_t(std::min(k0 + j, K - 1))];
         std::uint64_t sum_txy[kNmiGroup], sum_ty[kNmiGroup];
-        nmi_group_histograms(px.data(), px.size(), bin, B, joint.data(), hy.data());
         if (sum_by_cells) {
-          for (int j = 0; j < kNmiGroup; ++j)
-            sum_txy[j] = take_sum_t(joint.data() + std::size_t(j) * BB + row0, touched, T.data());
+          // Pass 2 over the touched rows; the partner histograms are their column sums (no
+          // per-pixel increments needed).
+          nmi_group_histograms<false>(px.data(), px.size(), bin, B, joint.data(), hy.data());
+          for (int j = 0; j < kNmiGroup; ++j) {
+            std::uint32_t* col = hy.data() + std::size_t(j) * std::size_t(B);
+            sum_txy[j] = take_sum_t_rows(joint.data() + std::size_t(j) * BB + row0, bx_hi - bx_lo + 1, B, T.data(), col);
+          }
         } else {
+          nmi_group_histograms<true>(px.data(), px.size(), bin, B, joint.data(), hy.data());
           take_joint_sums_by_pixels(px.data(), px.size(), bin, B, joint.data(), T.data(), sum_txy);
         }
         for (int j = 0; j < kNmiGroup; ++j)
