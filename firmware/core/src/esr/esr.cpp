@@ -19,6 +19,43 @@
 
 namespace fs {
 
+namespace {
+// Per-row passes of block_entropy's precomputation, one call per row (clone dispatch per row, loops
+// branch-free so they vectorise).
+FS_TARGET_CLONES
+void bins_row(const std::int16_t* __restrict d, std::int16_t* __restrict b, int w, std::int16_t dmax) {
+  for (int x = 0; x < w; ++x) {
+    const auto v = static_cast<std::int16_t>((d[x] + kDispScale / 2) >> kDispShift);
+    b[x] = d[x] == kInvalidDisp ? std::int16_t(-1) : std::min(v, dmax);
+  }
+}
+
+// rl[x] = min(below[x] + 1, cap) where b[x] == b1[x] (the run continues downwards), else 1.
+FS_TARGET_CLONES
+void run_row(const std::int16_t* __restrict b, const std::int16_t* __restrict b1, const std::int16_t* __restrict below,
+             std::int16_t* __restrict rl, int w, std::int16_t cap) {
+  for (int x = 0; x < w; ++x) {
+    const auto next = static_cast<std::int16_t>(std::min<std::int16_t>(static_cast<std::int16_t>(below[x] + 1), cap));
+    rl[x] = b[x] == b1[x] ? next : std::int16_t(1);
+  }
+}
+
+// s[x] = min(below[x] + 1, cap) (below = nullptr: the last row, 1) where b[x] == b[x - window], else 0,
+// for x in [window, w).
+FS_TARGET_CLONES
+void same_row(const std::int16_t* __restrict b, const std::int16_t* __restrict below, std::int16_t* __restrict s, int w,
+              int window, std::int16_t cap) {
+  if (below == nullptr) {
+    for (int x = window; x < w; ++x) s[x] = b[x] == b[x - window] ? std::int16_t(1) : std::int16_t(0);
+    return;
+  }
+  for (int x = window; x < w; ++x) {
+    const auto next = static_cast<std::int16_t>(std::min<std::int16_t>(static_cast<std::int16_t>(below[x] + 1), cap));
+    s[x] = b[x] == b[x - window] ? next : std::int16_t(0);
+  }
+}
+}  // namespace
+
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
@@ -32,41 +69,17 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
-  for (int y = 0; y < h; ++y) {
-    const std::int16_t* __restrict d = disp.row(y);
-    std::int16_t* __restrict b = bins.row(y);
-    for (int x = 0; x < w; ++x) {
-      const auto v = static_cast<std::int16_t>((d[x] + kDispScale / 2) >> kDispShift);
-      b[x] = d[x] == kInvalidDisp ? std::int16_t(-1) : std::min(v, dmax);
-    }
-  }
+  for (int y = 0; y < h; ++y) bins_row(disp.row(y), bins.row(y), w, dmax);
   // Branch-free and restrict-qualified so the compiler vectorises it (a row depends on the one
   // below it, the columns of a row do not).
   std::fill(run.row(h - 1), run.row(h - 1) + w, std::int16_t(1));
-  for (int y = h - 2; y >= 0; --y) {
-    const std::int16_t* __restrict b = bins.row(y);
-    const std::int16_t* __restrict b1 = bins.row(y + 1);
-    const std::int16_t* __restrict rl1 = run.row(y + 1);
-    std::int16_t* __restrict rl = run.row(y);
-    for (int x = 0; x < w; ++x) {
-      const auto next = static_cast<std::int16_t>(std::min<std::int16_t>(static_cast<std::int16_t>(rl1[x] + 1), wcap));
-      rl[x] = b[x] == b1[x] ? next : std::int16_t(1);
-    }
-  }
+  for (int y = h - 2; y >= 0; --y) run_row(bins.row(y), bins.row(y + 1), run.row(y + 1), run.row(y), w, wcap);
   // Once per map as well: same(x, y) = the vertical run, downwards, over which the column at x
   // equals the column at x - window bin for bin (capped at the window). When the column entering
   // a block (x + r) equals the one leaving it (x - r - 1) over all the block's rows, the
   // histogram, and so the entropy, does not change: common inside segments wider than the window.
   ImageI16 same(w, h, 0);
-  for (int y = h - 1; y >= 0; --y) {
-    const std::int16_t* __restrict b = bins.row(y);
-    const std::int16_t* __restrict s1 = y + 1 < h ? same.row(y + 1) : nullptr;
-    std::int16_t* __restrict s = same.row(y);
-    for (int x = window; x < w; ++x) {
-      const auto below = static_cast<std::int16_t>(s1 ? std::min<std::int16_t>(static_cast<std::int16_t>(s1[x] + 1), wcap) : 1);
-      s[x] = b[x] == b[x - window] ? below : std::int16_t(0);
-    }
-  }
+  for (int y = h - 1; y >= 0; --y) same_row(bins.row(y), y + 1 < h ? same.row(y + 1) : nullptr, same.row(y), w, window, wcap);
   ImageI32 out(w, h, 0);
   // eq. (14)'s division by n <= w^2 as a multiplication by recip[n] = ceil(2^32 / n): for a
   // dividend q < 2^32 / n, floor(q * recip[n] / 2^32) = floor(q / n) exactly (the error term
