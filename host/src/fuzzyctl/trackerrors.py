@@ -38,13 +38,15 @@ def _circles(run: dict[str, Any], run_dir: Path) -> list[dict[str, Any]]:
     return [o for o in world["obstacles"] if o.get("shape") == "circle"]
 
 
-def _nearest(circles: list[dict[str, Any]], t: float, x: float, y: float) -> tuple[float, dict[str, Any]] | None:
+def _nearest(circles: list[dict[str, Any]], t: float, x: float, y: float
+             ) -> tuple[float, dict[str, Any], float, float] | None:
+    """(distance, obstacle, its x, its y) of the circle nearest (x, y) at time t, or None."""
     best = None
     for o in circles:
         ox, oy = o["x"] + o.get("vx", 0.0) * t, o["y"] + o.get("vy", 0.0) * t
         d = math.hypot(ox - x, oy - y)
         if best is None or d < best[0]:
-            best = (d, o)
+            best = (d, o, ox, oy)
     return best
 
 
@@ -75,8 +77,7 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
                 px, py = tr["last"]
                 hit = _nearest(circles, t, px, py)
                 if hit is not None and hit[0] <= match_m:
-                    o = hit[1]
-                    ox, oy = o["x"] + o.get("vx", 0.0) * t, o["y"] + o.get("vy", 0.0) * t
+                    _, o, ox, oy = hit
                     fwd, lat = c * (ox - rx) + s * (oy - ry), -s * (ox - rx) + c * (oy - ry)
                     bearing = abs(math.degrees(math.atan2(lat, fwd)))
                     ex, ey = px - ox, py - oy

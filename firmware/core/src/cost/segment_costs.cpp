@@ -152,12 +152,14 @@ void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t*
 
 // eq. (2)-(4) for kNmiGroup (= 4) candidates, in two passes:
 //   1. histograms: per pixel one increment of each candidate's joint histogram (bin of l, bin of
-//      the candidate's partner) and of its partner histogram — a single read-modify-write each;
+//      the candidate's partner), and with kPartnerHistograms of its partner histogram — a single
+//      read-modify-write each;
 //   2. sums: sum_c T[c] over each histogram, reading every nonzero cell once and clearing it for
 //      the next group (T[0] = 0, so the zero cells add nothing and need no branch).
 // Pass 2 walks whichever is shorter: the joint histograms' touched rows (bx_lo .. bx_hi, cell by
-// cell), or the pixel list again (each pixel's cell, read and cleared: a cell's count is taken by
-// its first pixel, the rest read 0). Both give the same integers as summing T over the histogram.
+// cell; the partner histograms are then their column sums, so pass 1 skips them), or the pixel
+// list again (each pixel's cell, read and cleared: a cell's count is taken by its first pixel, the
+// rest read 0). Both give the same integers as summing T over the histogram.
 static_assert(kNmiGroup == 4, "nmi_group_histograms is written for 4 candidates");
 template <bool kPartnerHistograms>
 void nmi_group_histograms(const SegPixel* __restrict px, std::size_t n, const std::uint8_t* const* bin, int B,
