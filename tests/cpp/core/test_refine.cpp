@@ -1,6 +1,9 @@
 // WTA, left-right check (eq. 13) and ESR (eq. 14-15) against plain scalar references.
 #include <cmath>
 #include <map>
+#include <numeric>
+#include <algorithm>
+#include <tuple>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -25,37 +28,102 @@ ImageI16 random_disp(int w, int h, int D, unsigned seed, int invalid_pct, int bl
   return img;
 }
 
-TEST(Wta, PicksTheBestFisScoreAmongCandidates) {
-  const FisLut& lut = *FisLut::cached(load_fis_definition(""), 257);
-  std::mt19937 rng(3);
-  std::uniform_int_distribution<std::uint32_t> u(0, 65536);
-  SegmentCosts c;
-  c.segments = 40;
-  c.disparities = 17;
-  for (int i = 0; i < 40 * 17; ++i) {
-    c.ncc.push_back(u(rng));
-    c.igsad.push_back(u(rng));
-    c.nmi.push_back(u(rng));
-    c.nmi_valid.push_back(static_cast<std::uint8_t>(i % 3 != 0));
-  }
-  CostParams p;
-  p.alpha = 0.3;
-  const SegmentDecision dec = fis_winner_take_all(c, lut, p);
-  const auto a16 = std::uint32_t(std::llround(0.3 * 65536));
-  for (int s = 0; s < 40; ++s) {
+// Scalar reference of the WTA on dense per-(segment, d) costs with an evaluated flag: scan every d
+// in ascending order, keep the first best FIS score, then the sub-pixel parabola when both
+// neighbours were evaluated.
+struct DenseCosts {
+  int segments = 0, D = 0;
+  std::vector<std::uint32_t> ncc, igsad, nmi;
+  std::vector<std::uint8_t> valid;
+};
+
+SegmentDecision reference_wta(const DenseCosts& c, const FisLut& lut, const CostParams& p) {
+  const auto a16 = std::uint32_t(std::llround(p.alpha * 65536));
+  SegmentDecision dec;
+  dec.disparity.assign(std::size_t(c.segments), kInvalidDisp);
+  dec.disparity_q4.assign(std::size_t(c.segments), kInvalidDisp);
+  dec.score.assign(std::size_t(c.segments), 0);
+  auto score = [&](std::size_t i) { return lut.lookup(c.ncc[i], data_cost2_q16(c.nmi[i], c.igsad[i], a16)); };
+  for (int s = 0; s < c.segments; ++s) {
+    const std::size_t off = std::size_t(s) * std::size_t(c.D);
     int best = -1;
     std::uint32_t bs = 0;
-    for (int d = 0; d < 17; ++d) {
-      const std::size_t i = std::size_t(s * 17 + d);
-      if (!c.nmi_valid[i]) continue;
-      const double dc2 = (0.3 * c.nmi[i] + 0.7 * c.igsad[i]);
-      const std::uint32_t sc = lut.lookup(c.ncc[i], data_cost2_q16(c.nmi[i], c.igsad[i], a16));
-      EXPECT_NEAR(data_cost2_q16(c.nmi[i], c.igsad[i], a16), dc2, 1.0);
-      if (best < 0 || sc > bs) { best = d; bs = sc; }
+    for (int d = 0; d < c.D; ++d)
+      if (c.valid[off + std::size_t(d)] && (best < 0 || score(off + std::size_t(d)) > bs)) {
+        best = d;
+        bs = score(off + std::size_t(d));
+      }
+    if (best < 0) continue;
+    int offset = 0;
+    if (p.subpixel && best > 0 && best < c.D - 1 && c.valid[off + std::size_t(best) - 1] && c.valid[off + std::size_t(best) + 1]) {
+      const double sm = score(off + std::size_t(best) - 1), sp = score(off + std::size_t(best) + 1);
+      const double curv = 2.0 * bs - sm - sp;
+      if (curv > 0) offset = static_cast<int>(std::clamp(std::lround((sp - sm) * 16.0 / (2.0 * curv)), -8L, 8L));
     }
-    EXPECT_EQ(dec.disparity[std::size_t(s)], best);
-    EXPECT_EQ(dec.score[std::size_t(s)], bs);
+    dec.disparity[std::size_t(s)] = static_cast<std::int16_t>(best);
+    dec.disparity_q4[std::size_t(s)] = static_cast<std::int16_t>(best * 16 + offset);
+    dec.score[std::size_t(s)] = bs;
   }
+  return dec;
+}
+
+// The WTA on the candidate records against the dense scan, with K of D disparities per segment
+// (random subsets: many adjacent pairs, so the sub-pixel step runs) and with every disparity.
+TEST(Wta, CandidateRecordsDecideAsTheDenseScan) {
+  const FisLut& lut = *FisLut::cached(load_fis_definition(""), 257);
+  for (auto [K, D, subpixel] : {std::tuple{11, 17, true}, {11, 17, false}, {17, 17, true}, {3, 40, true}}) {
+    std::mt19937 rng(static_cast<unsigned>(3 + K + D));
+    std::uniform_int_distribution<std::uint32_t> u(0, 65536);
+    const int S = 60;
+    DenseCosts dense;
+    dense.segments = S;
+    dense.D = D;
+    SegmentCosts c;
+    c.segments = S;
+    c.disparities = D;
+    c.candidates_per_segment = K;
+    for (int i = 0; i < S * D; ++i) {
+      dense.ncc.push_back(u(rng));
+      dense.igsad.push_back(u(rng));
+      dense.nmi.push_back(u(rng));
+    }
+    c.ncc = dense.ncc;
+    c.igsad = dense.igsad;
+    dense.valid.assign(std::size_t(S * D), 0);
+    for (int s = 0; s < S; ++s) {
+      std::vector<int> ds(static_cast<std::size_t>(D));
+      std::iota(ds.begin(), ds.end(), 0);
+      std::shuffle(ds.begin(), ds.end(), rng);
+      ds.resize(std::size_t(K));
+      std::sort(ds.begin(), ds.end());
+      for (int d : ds) {
+        const std::size_t i = std::size_t(s * D + d);
+        dense.valid[i] = 1;
+        c.candidates.push_back({dense.ncc[i], dense.igsad[i], dense.nmi[i], d});
+      }
+    }
+    CostParams p;
+    p.alpha = 0.3;
+    p.subpixel = subpixel;
+    const SegmentDecision a = fis_winner_take_all(c, lut, p), b = reference_wta(dense, lut, p);
+    SCOPED_TRACE(::testing::Message() << "K=" << K << " D=" << D << " subpixel=" << subpixel);
+    EXPECT_EQ(a.disparity, b.disparity);
+    EXPECT_EQ(a.disparity_q4, b.disparity_q4);
+    EXPECT_EQ(a.score, b.score);
+    int moved = 0;
+    for (int s = 0; s < S; ++s) moved += a.disparity_q4[std::size_t(s)] % 16 != 0;
+    if (subpixel && 2 * K > D) EXPECT_GT(moved, 0);  // dense enough for adjacent triples: the sub-pixel step ran
+  }
+}
+
+TEST(Wta, RejectsCostsWithoutCandidateRecords) {
+  const FisLut& lut = *FisLut::cached(load_fis_definition(""), 257);
+  SegmentCosts c;
+  c.segments = 2;
+  c.disparities = 4;
+  c.ncc.assign(8, 0);
+  c.igsad.assign(8, 0);
+  EXPECT_THROW(fis_winner_take_all(c, lut, CostParams{}), std::invalid_argument);
 }
 
 // paint_segments (row-wise table read through the labels) against painting the runs segment by

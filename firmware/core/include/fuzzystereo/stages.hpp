@@ -68,19 +68,24 @@ Segmentation segmentation_from_labels(ImageI32 labels);
 // ---- cost/ ----------------------------------------------------------------------------------
 // Per segment and disparity: the two FIS inputs in Q16. Layout [segment * D + d].
 //   dc1 = max(0, NCC) (eq. 1, 8); dc2 = alpha*NMI + (1-alpha)*IGSAD (eq. 2-7, 9).
-// nmi_valid[s*D+d] = 1 where NMI was evaluated (candidates), 0 where it was skipped.
-// With nmi_candidates = K < D, candidates[s*K + k] lists the same K disparities of segment s in
-// ascending order (a compact index of nmi_valid, so the WTA reads K entries, not D); empty when
-// every disparity is evaluated.
+// NCC and IGSAD are dense (every d: they rank the NMI candidates). NMI is evaluated only for the
+// K = nmi_candidates best disparities of a segment (K = D when nmi_candidates is 0 or >= D); those K
+// are listed per segment in ascending d with all three costs, so the WTA reads K consecutive
+// 16-byte records instead of three scattered entries of the dense arrays each (the dense arrays of
+// a KITTI frame, ~9 MB per direction, do not stay in cache between the stages).
+struct CostCandidate {
+  std::uint32_t ncc;    // Q16 (dc1)
+  std::uint32_t igsad;  // Q16
+  std::uint32_t nmi;    // Q16, eq. (4)
+  std::int32_t d;       // integer disparity
+};
 struct SegmentCosts {
   int segments = 0;
   int disparities = 0;
   std::vector<std::uint32_t> ncc;     // Q16, clamped to [0, 1]
   std::vector<std::uint32_t> igsad;   // Q16
-  std::vector<std::uint32_t> nmi;     // Q16 (0 where not evaluated)
-  std::vector<std::uint8_t> nmi_valid;
-  int candidates_per_segment = 0;     // K, or 0 when candidates is empty
-  std::vector<std::int16_t> candidates;
+  int candidates_per_segment = 0;     // K (<= D)
+  std::vector<CostCandidate> candidates;  // [segment * K + k], ascending d within a segment
 };
 
 // Scratch memory of the cost stage (padded partner rows, ~(W + D) * H * 13 bytes). Reusing one
@@ -116,9 +121,10 @@ struct SegmentDecision {
 // Data Cost 2 of eq. (9) in Q16 from NMI and IGSAD in Q16.
 std::uint32_t data_cost2_q16(std::uint32_t nmi_q16, std::uint32_t igsad_q16, std::uint32_t alpha_q16);
 
-// Winner-take-all over the FIS score (Section III): per segment, argmax_d FIS(dc1, dc2).
-// With p.subpixel, a parabola through the scores at d-1, d, d+1 (when both neighbours were
-// evaluated) moves the winner by at most half a pixel: disparity_q4 = 16 d + offset.
+// Winner-take-all over the FIS score (Section III): per segment, argmax_d FIS(dc1, dc2) over its
+// candidates (ties keep the smaller d). With p.subpixel, a parabola through the scores at d-1, d,
+// d+1 (when both neighbours are candidates) moves the winner by at most half a pixel:
+// disparity_q4 = 16 d + offset.
 SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis, const CostParams& p);
 
 // Paint per-segment Q4 disparities into a Q4 disparity map.

@@ -426,15 +426,13 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
   const std::size_t total = std::size_t(seg.count) * std::size_t(D);
   c.ncc.resize(total);    // every entry is written below (all D of every segment)
   c.igsad.resize(total);
-  c.nmi.assign(total, 0);  // only the candidates are written
-  c.nmi_valid.assign(total, 0);
 
   std::int32_t max_pixels = 0;
   for (auto n : seg.pixels) max_pixels = std::max(max_pixels, n);
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(max_pixels));
   const int K = (p.nmi_candidates <= 0 || p.nmi_candidates >= D) ? D : p.nmi_candidates;
-  c.candidates_per_segment = K < D ? K : 0;
-  c.candidates.resize(K < D ? std::size_t(seg.count) * std::size_t(K) : 0);
+  c.candidates_per_segment = K;
+  c.candidates.resize(std::size_t(seg.count) * std::size_t(K));  // every record is written below
   const auto base_of = [&](int x) { return (direction > 0 ? w - 1 - x : x) + (shift > 0 ? shift : 0); };
 
   const int nt = detail::resolve_threads(threads);
@@ -557,16 +555,15 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
       }
 
       // Candidates for NMI: the K best by FIS(NCC, IGSAD) read at the nearest table node (ranking
-      // needs no interpolation); ties -> smaller d.
+      // needs no interpolation; ties -> smaller d), then in ascending d (the record order).
       if (K < D) {
         prescore_nearest(fis, c.ncc.data() + off, c.igsad.data() + off, D, prescore.data());
         top_k(prescore.data(), D, K, best.data(), order.data(), flags.data());
-        std::int16_t* cand = c.candidates.data() + std::size_t(s) * std::size_t(K);
-        for (int k = 0; k < K; ++k) cand[k] = static_cast<std::int16_t>(order[std::size_t(k)]);
-        std::sort(cand, cand + K);
+        std::sort(order.begin(), order.begin() + K);
       } else {
         std::iota(order.begin(), order.end(), 0);
       }
+      CostCandidate* rec = c.candidates.data() + std::size_t(s) * std::size_t(K);
 
       // eq. (2)-(4): NMI from the joint histogram, kNmiGroup candidates per pass over the pixel
       // list (independent histograms, so their increments overlap); the sums of T over the
@@ -608,8 +605,7 @@ void compute_segment_costs(SegmentCosts& c, const ImageU8& ref, const ImageU8& o
             const std::uint64_t qn = ((H_x + H_y - H_xy) << kQ16Shift) / den;
             nmi = static_cast<std::uint32_t>(std::min<std::uint64_t>(qn, kQ16One));
           }
-          c.nmi[off + std::size_t(d)] = nmi;
-          c.nmi_valid[off + std::size_t(d)] = 1;
+          rec[k0 + j] = {c.ncc[off + std::size_t(d)], c.igsad[off + std::size_t(d)], nmi, d};
         }
       }
     }

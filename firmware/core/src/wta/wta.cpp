@@ -2,6 +2,7 @@
 // matching quality; winner-take-all keeps the best disparity per segment.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "fuzzystereo/stages.hpp"
 
@@ -18,50 +19,40 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   const auto alpha_q16 = static_cast<std::uint32_t>(std::llround(p.alpha * kQ16One));
   SegmentDecision dec;
   const std::size_t n = std::size_t(costs.segments);
-  const int K = costs.candidates_per_segment > 0 &&
-                        costs.candidates.size() == n * std::size_t(costs.candidates_per_segment)
-                    ? costs.candidates_per_segment
-                    : 0;
+  const int K = costs.candidates_per_segment;
+  if (K <= 0 || costs.candidates.size() != n * std::size_t(K))
+    throw std::invalid_argument("fis_winner_take_all: the costs hold no candidate records for every segment");
   dec.disparity.assign(n, kInvalidDisp);
   dec.disparity_q4.assign(n, kInvalidDisp);
   dec.score.assign(n, 0);
   dec.dc1.assign(n, 0);
   dec.dc2.assign(n, 0);
+  auto score_of = [&](const CostCandidate& c) { return fis.lookup(c.ncc, data_cost2_q16(c.nmi, c.igsad, alpha_q16)); };
   // Segments are independent (each writes only its own entries).
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (std::size_t s = 0; s < n; ++s) {
-    const std::size_t off = s * std::size_t(D);
+    const CostCandidate* rec = costs.candidates.data() + s * std::size_t(K);  // ascending d
     std::int64_t best = -1;
-    auto consider = [&](int d) {
-      const std::size_t i = off + std::size_t(d);
-      const std::uint32_t dc2 = data_cost2_q16(costs.nmi[i], costs.igsad[i], alpha_q16);
-      const std::uint32_t score = fis.lookup(costs.ncc[i], dc2);
+    int kb = -1;
+    for (int k = 0; k < K; ++k) {
+      const std::uint32_t score = score_of(rec[k]);
       if (std::int64_t(score) > best) {  // strict, in ascending d: ties keep the smaller d
         best = score;
-        dec.disparity[s] = static_cast<std::int16_t>(d);
-        dec.score[s] = score;
-        dec.dc1[s] = costs.ncc[i];
-        dec.dc2[s] = dc2;
+        kb = k;
       }
-    };
-    if (K > 0) {  // the candidate index (ascending d): the same disparities as nmi_valid
-      const std::int16_t* cand = costs.candidates.data() + s * std::size_t(K);
-      for (int k = 0; k < K; ++k) consider(cand[k]);
-    } else {
-      for (int d = 0; d < D; ++d)
-        if (costs.nmi_valid[off + std::size_t(d)]) consider(d);  // else not a candidate
     }
-    const int d = dec.disparity[s];
-    if (d < 0) continue;
+    if (kb < 0) continue;
+    const int d = rec[kb].d;
+    dec.disparity[s] = static_cast<std::int16_t>(d);
+    dec.score[s] = static_cast<std::uint32_t>(best);
+    dec.dc1[s] = rec[kb].ncc;
+    dec.dc2[s] = data_cost2_q16(rec[kb].nmi, rec[kb].igsad, alpha_q16);
     int offset = 0;
-    if (p.subpixel && d > 0 && d < D - 1 && costs.nmi_valid[off + std::size_t(d) - 1] && costs.nmi_valid[off + std::size_t(d) + 1]) {
-      auto score_at = [&](int dd) {
-        const std::size_t i = off + std::size_t(dd);
-        return static_cast<std::int64_t>(fis.lookup(costs.ncc[i], data_cost2_q16(costs.nmi[i], costs.igsad[i], alpha_q16)));
-      };
-      const std::int64_t sm = score_at(d - 1), s0 = best, sp = score_at(d + 1);
+    // Both neighbours are candidates exactly when they are the neighbouring records (ascending d).
+    if (p.subpixel && d > 0 && d < D - 1 && kb > 0 && kb + 1 < K && rec[kb - 1].d == d - 1 && rec[kb + 1].d == d + 1) {
+      const std::int64_t sm = score_of(rec[kb - 1]), s0 = best, sp = score_of(rec[kb + 1]);
       const std::int64_t curv = 2 * s0 - sm - sp;  // > 0 at a strict maximum
       if (curv > 0) {
         // vertex of the parabola: (sp - sm) / (2 curv) px, in Q4 rounded to nearest, |.| <= 1/2 px
