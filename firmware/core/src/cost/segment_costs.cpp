@@ -120,7 +120,7 @@ struct SegPixel {
 //   (sum l*r = 256 * sum hi + sum lo; n <= kFlushPixels keeps the totals < 2^31).
 constexpr int kGroup16 = 45;  // 45 * 1443 = 64935 < 65536 (and 45 * 255 for hi, lo)
 
-FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+FS_TARGET_CLONES_V4 FS_NO_UNROLL_AND_JAM
 void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t* __restrict val,
                       const std::int16_t* __restrict grad, std::int32_t* __restrict slr, std::int32_t* __restrict sg) {
   std::int32_t a[kBlock] = {}, g[kBlock] = {};
@@ -242,7 +242,7 @@ struct RunSpan {
   std::int32_t lo, hi;
 };
 
-FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+FS_TARGET_CLONES_V4 FS_NO_UNROLL_AND_JAM
 void accumulate_runs(const RunSpan* __restrict runs, int nruns, int D, std::int32_t* __restrict sr,
                      std::int32_t* __restrict srr) {
   for (int d0 = 0; d0 < D; d0 += kBlock) {
@@ -294,7 +294,7 @@ inline std::uint32_t igsad_q16(std::int64_t g, double inv_max_q16) {
 // of every SLIC segment in practice): the same double operations as ncc_q16/igsad_q16, written
 // branch-free so they vectorise. Every integer below is exact in double (n <= 2^15, sums < 2^31:
 // products < 2^46), so the results are bit-identical to the int64 path.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void ncc_igsad_q16_i32(const std::int32_t* __restrict slr, const std::int32_t* __restrict sr,
                        const std::int32_t* __restrict srr, const std::int32_t* __restrict sg, int D, double n,
                        double sl, double varl, double inv_gmax, std::uint32_t* __restrict ncc,
