@@ -17,7 +17,7 @@
 // clone, used only where it measured faster: the cost stage's register-blocked sums and its NCC /
 // IGSAD normalisation (cost stage ~44 -> ~40 ms per KITTI frame at 1 thread). On every kernel it
 // made SLIC's window assignment 1.6x slower (docs/results.md, session 11), so the rest keep AVX2.
-// The core builds with -std=c++20 (ISO: no FP contraction), so the clones compute the same doubles.
+// The core builds with -ffp-contract=off (firmware/CMakeLists.txt), so every clone computes the same doubles.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define FS_TARGET_CLONES __attribute__((target_clones("avx2", "default")))
 #define FS_TARGET_CLONES_V4 __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
