@@ -14,9 +14,10 @@
 // Function multi-versioning for the hot cost loop: on x86-64 gcc emits an AVX2 clone and a baseline
 // clone and picks one at load time; on aarch64 NEON is baseline, so plain code is vectorised as is.
 // This is the only platform switch in the core. FS_TARGET_CLONES_V4 adds an x86-64-v4 (AVX-512)
-// clone, used only where it measured faster: the cost stage's register-blocked sums and its NCC /
-// IGSAD normalisation (cost stage ~44 -> ~40 ms per KITTI frame at 1 thread). On every kernel it
-// made SLIC's window assignment 1.6x slower (docs/results.md, session 11), so the rest keep AVX2.
+// clone, used where it measured faster: the cost stage's register-blocked sums and its NCC /
+// IGSAD normalisation (cost stage ~44 -> ~40 ms per KITTI frame at 1 thread), and the gradient,
+// ESR row passes and densify kernels (~1 ms together). SLIC's window assignment keeps AVX2: with an
+// AVX-512 clone it ran 1.6x slower (docs/results.md, session 11).
 // The core builds with -ffp-contract=off (firmware/CMakeLists.txt), so every clone computes the same doubles.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define FS_TARGET_CLONES __attribute__((target_clones("avx2", "default")))

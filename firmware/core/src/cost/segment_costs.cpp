@@ -59,7 +59,7 @@ struct PartnerRows {
 
 // D is the number of disparities searched (with the test-only shift). The rows hold D + kBlock
 // partners per pixel, so a block of kBlock disparities starting at any d0 < D reads inside the row.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void build_partner_rows(PartnerRows& p, const ImageU8& other, const ImageU16& other_grad, int direction, int D, int bins) {
   const int w = other.width, h = other.height;
   p.stride = w + D + kBlock - 1;
@@ -266,7 +266,7 @@ void accumulate_runs(const RunSpan* __restrict runs, int nruns, int D, std::int3
 }
 
 // max_d GSAD_d, the normaliser of eq. (7) (a max reduction that vectorises).
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 std::int32_t max_of(const std::int32_t* __restrict v, int D) {
   std::int32_t m = 0;
   for (int d = 0; d < D; ++d) m = std::max(m, v[d]);
@@ -316,7 +316,7 @@ void ncc_igsad_q16_i32(const std::int32_t* __restrict slr, const std::int32_t* _
 
 // FIS score at the nearest table node for every d (FisLut::lookup_nearest, written as one loop of
 // index arithmetic and table reads so it vectorises with gathers).
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void prescore_nearest(const FisLut& fis, const std::uint32_t* __restrict a, const std::uint32_t* __restrict b, int D,
                       std::uint32_t* __restrict out) {
   const std::uint32_t* __restrict table = fis.table().data();
@@ -347,7 +347,7 @@ inline std::uint32_t kth_largest(const std::uint32_t* v, int m, int K) {
 // vertical max over rows of M lanes (vectorises, M = 16 for the default K = 8 has its own
 // fixed-width loop), and neighbouring disparities — a prescore peak is a few d wide — fall into
 // different classes, which keeps the bound close to the K-th value.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, int K) {
   if (D < 2 * K || K > 32) return 0;
   const int M = D >= 4 * K ? 2 * K : K;
@@ -363,7 +363,7 @@ std::uint32_t top_k_threshold(const std::uint32_t* __restrict prescore, int D, i
 
 // Flags of the disparities that reach thr (1 byte per d, vectorises); the flag array is padded
 // with zeros to a multiple of 8 so it can be read 8 flags at a time.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void flag_at_least(const std::uint32_t* __restrict prescore, int D, std::uint32_t thr, std::uint8_t* __restrict flag) {
   for (int d = 0; d < D; ++d) flag[d] = prescore[d] >= thr ? 1 : 0;
   for (int d = D; d % 8 != 0; ++d) flag[d] = 0;

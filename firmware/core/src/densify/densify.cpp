@@ -160,7 +160,7 @@ void scan_ray(const ImageI16& d, int dy, int dx, std::int16_t* out, std::int16_t
 // is off by at most 1, and one correction step each way makes it exact. Every load is
 // unconditional and the test uses & (not &&), so the loop vectorises (AVX2 clone on x86-64: SSE2
 // has no 32-bit multiply).
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void interpolate_pair(std::int16_t* __restrict a, std::int16_t* __restrict b, const std::int16_t* __restrict ta,
                       const std::int16_t* __restrict tb, int m, int max_diff_q4) {
   for (int i = 0; i < m; ++i) {

@@ -22,7 +22,7 @@ namespace fs {
 namespace {
 // Per-row passes of block_entropy's precomputation, one call per row (clone dispatch per row, loops
 // branch-free so they vectorise).
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void bins_row(const std::int16_t* __restrict d, std::int16_t* __restrict b, int w, std::int16_t dmax) {
   for (int x = 0; x < w; ++x) {
     const auto v = static_cast<std::int16_t>((d[x] + kDispScale / 2) >> kDispShift);
@@ -31,7 +31,7 @@ void bins_row(const std::int16_t* __restrict d, std::int16_t* __restrict b, int 
 }
 
 // rl[x] = min(below[x] + 1, cap) where b[x] == b1[x] (the run continues downwards), else 1.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void run_row(const std::int16_t* __restrict b, const std::int16_t* __restrict b1, const std::int16_t* __restrict below,
              std::int16_t* __restrict rl, int w, std::int16_t cap) {
   for (int x = 0; x < w; ++x) {
@@ -42,7 +42,7 @@ void run_row(const std::int16_t* __restrict b, const std::int16_t* __restrict b1
 
 // s[x] = min(below[x] + 1, cap) (below = nullptr: the last row, 1) where b[x] == b[x - window], else 0,
 // for x in [window, w).
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void same_row(const std::int16_t* __restrict b, const std::int16_t* __restrict below, std::int16_t* __restrict s, int w,
               int window, std::int16_t cap) {
   if (below == nullptr) {

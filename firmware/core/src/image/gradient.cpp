@@ -25,7 +25,7 @@ inline std::uint16_t sobel_at(const std::uint8_t* up, const std::uint8_t* mid, c
 }
 
 // The interior columns 1 .. w-2 of one row: no border clamp, so the loop vectorises.
-FS_TARGET_CLONES
+FS_TARGET_CLONES_V4
 void sobel_interior(const std::uint8_t* __restrict up, const std::uint8_t* __restrict mid, const std::uint8_t* __restrict dn,
                     std::uint16_t* __restrict o, int w) {
   for (int x = 1; x < w - 1; ++x) o[x] = sobel_at(up, mid, dn, x - 1, x, x + 1);
