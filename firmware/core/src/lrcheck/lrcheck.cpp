@@ -10,6 +10,10 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
   ImageI16 out(w, h, kInvalidDisp);
   if (mask) *mask = ImageU8(w, h, 0);
   const int tol = p.max_diff * kDispScale;
+  // Rows are independent.
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
   for (int y = 0; y < h; ++y) {
     const std::int16_t* l = disp_left.row(y);
     const std::int16_t* r = disp_right.row(y);
