@@ -106,8 +106,11 @@ ImageI16 fill_reference(const ImageI16& d, int interp_q4 = 0) {
   return out;
 }
 
+// With 1 and 3 threads: the per-row run passes are split between threads.
 TEST(Densify, SpecklesMatchUnionFindReference) {
+  for (int threads : {1, 3})
   for (unsigned seed = 1; seed <= 6; ++seed) {
+    detail::use_threads(threads);
     const int w = 37 + 2 * static_cast<int>(seed), h = 29 + static_cast<int>(seed);
     const ImageI16 d = blocky_disp(w, h, seed, 25);
     for (int size : {0, 1, 7, 40}) {
@@ -124,6 +127,7 @@ TEST(Densify, SpecklesMatchUnionFindReference) {
       }
     }
   }
+  detail::use_threads(0);
 }
 
 // The plain median fill (threshold 0) and the slant-aware fill (interpolate_max_diff, 3

@@ -18,55 +18,75 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
   if (max_size <= 0 || disp.empty()) return 0;
   // 4-connected components of valid pixels whose neighbours differ by <= max_diff_q4 (the rule of
   // OpenCV's filterSpeckles, which fs_core cannot call); components of <= max_size pixels go.
-  // Two passes on runs: a run is a maximal stretch of a row whose consecutive pixels connect; runs
-  // of consecutive rows join (union-find) where a pixel connects to the one above it.
+  // Three passes on runs: a run is a maximal stretch of a row whose consecutive pixels connect.
+  //   1. per row, in parallel: the runs and each pixel's run index within its row (-1: invalid);
+  //   2. serial: runs numbered row by row, runs of consecutive rows joined (union-find) where a
+  //      pixel connects to the one above it;
+  //   3. per row, in parallel: the runs of small components set invalid.
   struct SRun {
     std::int32_t x0, x1;
   };
-  std::vector<SRun> runs;
-  std::vector<std::int32_t> row_begin(std::size_t(h) + 1, 0), run_of(std::size_t(w) * std::size_t(h), -1);
+  const std::size_t uw = static_cast<std::size_t>(w);
+  std::vector<std::vector<SRun>> row_runs(static_cast<std::size_t>(h));
+  std::vector<std::int32_t> local_of(uw * std::size_t(h));  // every entry written in pass 1
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
   for (int y = 0; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
-    std::int32_t* ro = run_of.data() + std::size_t(y) * std::size_t(w);
+    std::int32_t* lo = local_of.data() + std::size_t(y) * uw;
+    std::vector<SRun>& rr = row_runs[std::size_t(y)];
     int x = 0;
     while (x < w) {
-      if (d[x] == kInvalidDisp) { ++x; continue; }
+      if (d[x] == kInvalidDisp) { lo[x++] = -1; continue; }
       int e = x + 1;
       while (e < w && d[e] != kInvalidDisp && std::abs(d[e] - d[e - 1]) <= max_diff_q4) ++e;
-      const auto id = static_cast<std::int32_t>(runs.size());
-      runs.push_back({x, e});
-      std::fill(ro + x, ro + e, id);
+      std::fill(lo + x, lo + e, static_cast<std::int32_t>(rr.size()));
+      rr.push_back({x, e});
       x = e;
     }
-    row_begin[std::size_t(y) + 1] = static_cast<std::int32_t>(runs.size());
   }
-  detail::MinRootUnionFind uf(runs.size());
+  std::vector<std::int32_t> row_begin(std::size_t(h) + 1, 0);  // global index of a row's first run
+  for (int y = 0; y < h; ++y)
+    row_begin[std::size_t(y) + 1] = row_begin[std::size_t(y)] + static_cast<std::int32_t>(row_runs[std::size_t(y)].size());
+  const auto nruns = static_cast<std::size_t>(row_begin.back());
+  detail::MinRootUnionFind uf(nruns);
   for (int y = 1; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
     const std::int16_t* u = disp.row(y - 1);
-    const std::int32_t* ro = run_of.data() + std::size_t(y) * std::size_t(w);
-    const std::int32_t* ru = ro - w;
+    const std::int32_t* lo = local_of.data() + std::size_t(y) * uw;
+    const std::int32_t* lu = lo - w;
+    const std::int32_t base = row_begin[std::size_t(y)], base_u = row_begin[std::size_t(y) - 1];
     std::int32_t last_a = -1, last_b = -1;  // the same pair of runs repeats along their overlap
     for (int x = 0; x < w; ++x) {
-      if (ro[x] < 0 || ru[x] < 0 || std::abs(d[x] - u[x]) > max_diff_q4) continue;
-      if (ro[x] == last_a && ru[x] == last_b) continue;
-      last_a = ro[x];
-      last_b = ru[x];
-      uf.unite(ro[x], ru[x]);
+      if (lo[x] < 0 || lu[x] < 0 || std::abs(d[x] - u[x]) > max_diff_q4) continue;
+      if (lo[x] == last_a && lu[x] == last_b) continue;
+      last_a = lo[x];
+      last_b = lu[x];
+      uf.unite(base + lo[x], base_u + lu[x]);
     }
   }
-  std::vector<std::int32_t> parent(runs.size());  // each run's root
-  std::vector<std::int32_t> size(runs.size(), 0);
-  for (std::size_t i = 0; i < runs.size(); ++i) {
-    parent[i] = uf.find(static_cast<std::int32_t>(i));
-    size[std::size_t(parent[i])] += runs[i].x1 - runs[i].x0;
+  std::vector<std::int32_t> parent(nruns);  // each run's root
+  std::vector<std::int32_t> size(nruns, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::vector<SRun>& rr = row_runs[std::size_t(y)];
+    for (std::size_t k = 0; k < rr.size(); ++k) {
+      const std::size_t i = std::size_t(row_begin[std::size_t(y)]) + k;
+      parent[i] = uf.find(static_cast<std::int32_t>(i));
+      size[std::size_t(parent[i])] += rr[k].x1 - rr[k].x0;
+    }
   }
   int count = 0;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static) reduction(+ : count)
+#endif
   for (int y = 0; y < h; ++y) {
     std::int16_t* d = disp.row(y);
-    for (std::int32_t i = row_begin[std::size_t(y)]; i < row_begin[std::size_t(y) + 1]; ++i) {
-      if (size[std::size_t(parent[std::size_t(i)])] > max_size) continue;
-      const SRun& r = runs[std::size_t(i)];
+    const std::vector<SRun>& rr = row_runs[std::size_t(y)];
+    for (std::size_t k = 0; k < rr.size(); ++k) {
+      const std::size_t i = std::size_t(row_begin[std::size_t(y)]) + k;
+      if (size[std::size_t(parent[i])] > max_size) continue;
+      const SRun& r = rr[k];
       std::fill(d + r.x0, d + r.x1, kInvalidDisp);
       if (removed) std::fill(removed->row(y) + r.x0, removed->row(y) + r.x1, std::uint8_t(1));
       count += r.x1 - r.x0;
@@ -303,22 +323,38 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
 }
 
 ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed) {
-  ImageI16 d = disp;
-  ImageU8 removed(disp.width, disp.height, 0);
+  const auto n = static_cast<std::ptrdiff_t>(disp.data.size());
+  ImageI16 d(disp.width, disp.height);
+  ImageU8 removed(disp.width, disp.height);
   // Disparity 0 (a point at infinity) is where the segment WTA found no match inside the range
   // (sky, textureless or left-border segments); it is treated as "no estimate" and filled.
-  for (std::size_t i = 0; i < d.data.size(); ++i)
-    if (d.data[i] == 0) {
-      d.data[i] = kInvalidDisp;
-      removed.data[i] = 1;
+  // Element-wise, branch-free passes (vectorised, split between threads).
+  {
+    const std::int16_t* __restrict src = disp.data.data();
+    std::int16_t* __restrict dst = d.data.data();
+    std::uint8_t* __restrict rm = removed.data.data();
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for simd schedule(static)
+#endif
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+      const bool zero = src[i] == 0;
+      dst[i] = zero ? kInvalidDisp : src[i];
+      rm[i] = zero ? 1 : 0;
     }
+  }
   remove_speckles(d, p.speckle_max_size, p.speckle_max_diff * kDispScale, &removed);
   ImageU8 filled;
   ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale) : d;
   if (changed) {
-    *changed = ImageU8(disp.width, disp.height, 0);
-    for (std::size_t i = 0; i < out.data.size(); ++i)
-      changed->data[i] = removed.data[i] ? 2 : (p.fill && filled.data[i] ? 1 : 0);
+    *changed = ImageU8(disp.width, disp.height);
+    const std::uint8_t* __restrict rm = removed.data.data();
+    const std::uint8_t* __restrict fl = p.fill ? filled.data.data() : rm;  // not read unless p.fill
+    std::uint8_t* __restrict ch = changed->data.data();
+    const bool fill = p.fill;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for simd schedule(static)
+#endif
+    for (std::ptrdiff_t i = 0; i < n; ++i) ch[i] = rm[i] ? 2 : ((fill && fl[i]) ? 1 : 0);
   }
   return out;
 }
