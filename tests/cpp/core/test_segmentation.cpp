@@ -122,6 +122,12 @@ TEST(Slic, MatchesScalarReference) {
     EXPECT_EQ(fast.labels.data, ref.labels.data) << c.w << "x" << c.h << " S=" << c.S;
     EXPECT_EQ(fast.run_begin, ref.run_begin);
     EXPECT_EQ(fast.pixels, ref.pixels);
+    ASSERT_EQ(fast.runs.size(), ref.runs.size());
+    for (std::size_t i = 0; i < ref.runs.size(); ++i) {
+      ASSERT_EQ(fast.runs[i].y, ref.runs[i].y) << "run " << i;
+      ASSERT_EQ(fast.runs[i].x0, ref.runs[i].x0) << "run " << i;
+      ASSERT_EQ(fast.runs[i].x1, ref.runs[i].x1) << "run " << i;
+    }
   }
 }
 

@@ -197,11 +197,22 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
     parent[j] = uf.find(static_cast<std::int32_t>(j));
     size[std::size_t(parent[j])] += runs[j].x1 - runs[j].x0;
   }
-  ImageI32 out(w, h, -1);
+  // Final labels, painted run by run, and the Segmentation's runs straight from them: a run ends
+  // where the next SLIC run of the row has another final label (a piece that joined its left
+  // neighbour continues that neighbour's run), so these are exactly the runs of the label image
+  // (what segmentation_from_labels would find again with two more passes over it).
+  Segmentation seg;
+  seg.labels = ImageI32(w, h, -1);
+  ImageI32& out = seg.labels;
   std::vector<std::int32_t> final_label(runs.size(), -1);  // per root run
+  std::vector<Run> out_runs;                              // row-major
+  std::vector<std::int32_t> out_label;                    // final label of each
+  out_runs.reserve(runs.size());
+  out_label.reserve(runs.size());
   std::int32_t next = 0;
   for (int y = 0; y < h; ++y) {
     std::int32_t* o = out.row(y);
+    const std::size_t row_first = out_runs.size();
     for (std::int32_t j = row_begin[std::size_t(y)]; j < row_begin[std::size_t(y) + 1]; ++j) {
       const LRun& b = runs[std::size_t(j)];
       const std::int32_t root = parent[std::size_t(j)];
@@ -211,9 +222,26 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
         fl = (size[std::size_t(j)] < min_size && adjacent >= 0) ? adjacent : next++;
       }
       std::fill(o + b.x0, o + b.x1, fl);
+      if (out_runs.size() > row_first && out_label.back() == fl) {
+        out_runs.back().x1 = b.x1;  // continues the previous run of this row
+      } else {
+        out_runs.push_back({y, b.x0, b.x1});
+        out_label.push_back(fl);
+      }
     }
   }
-  return segmentation_from_labels(std::move(out));
+  seg.count = next;
+  seg.pixels.assign(std::size_t(next), 0);
+  seg.run_begin.assign(std::size_t(next) + 1, 0);
+  for (std::size_t i = 0; i < out_runs.size(); ++i) {
+    seg.pixels[std::size_t(out_label[i])] += out_runs[i].x1 - out_runs[i].x0;
+    ++seg.run_begin[std::size_t(out_label[i]) + 1];
+  }
+  for (int s = 0; s < next; ++s) seg.run_begin[std::size_t(s) + 1] += seg.run_begin[std::size_t(s)];
+  seg.runs.resize(out_runs.size());
+  std::vector<std::int32_t> fill(seg.run_begin.begin(), seg.run_begin.end() - 1);
+  for (std::size_t i = 0; i < out_runs.size(); ++i) seg.runs[std::size_t(fill[std::size_t(out_label[i])]++)] = out_runs[i];
+  return seg;
 }
 
 }  // namespace fs
