@@ -112,7 +112,9 @@ TEST(Wta, CandidateRecordsDecideAsTheDenseScan) {
     EXPECT_EQ(a.score, b.score);
     int moved = 0;
     for (int s = 0; s < S; ++s) moved += a.disparity_q4[std::size_t(s)] % 16 != 0;
-    if (subpixel && 2 * K > D) EXPECT_GT(moved, 0);  // dense enough for adjacent triples: the sub-pixel step ran
+    if (subpixel && 2 * K > D) {  // dense enough for adjacent triples: the sub-pixel step ran
+      EXPECT_GT(moved, 0);
+    }
   }
 }
 
