@@ -98,7 +98,10 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
 #endif
   for (int y = 0; y < h; ++y) {
     const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r), nr = y1 - y0 + 1;
-    std::vector<std::uint32_t> hist_v(std::size_t(max_disparity) + 1, 0);
+    // Bins 0 .. max_disparity, and one more that invalid pixels address with a count of 0 (it
+    // stays 0: no branch on validity in add_col).
+    std::vector<std::uint32_t> hist_v(std::size_t(max_disparity) + 2, 0);
+    const auto dummy = static_cast<std::int16_t>(max_disparity + 1);
     std::uint32_t* __restrict hist = hist_v.data();
     const std::int16_t* __restrict bcol = bins.row(y0);  // column x of the block: bcol[x + k*w]
     const std::int16_t* __restrict rcol = run.row(y0);
@@ -111,12 +114,12 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
       int k0 = 0;
       while (k0 < nr) {
         const std::size_t at = std::size_t(k0) * std::size_t(w) + std::size_t(x);
-        const std::int16_t b = bcol[at];
+        const std::int16_t b0 = bcol[at];
         const int k = std::min<int>(rcol[at], nr - k0);
         k0 += k;
-        if (b < 0) continue;
+        const std::int16_t b = b0 < 0 ? dummy : b0;
         std::uint32_t& c = hist[std::size_t(b)];
-        const auto uk = static_cast<std::uint32_t>(k);
+        const auto uk = b0 < 0 ? 0u : static_cast<std::uint32_t>(k);
         if (sign > 0) { sum_t += Tp[c + uk] - Tp[c]; c += uk; n += uk; }
         else          { sum_t -= Tp[c] - Tp[c - uk]; c -= uk; n -= uk; }
       }
