@@ -8,6 +8,7 @@
 #   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
 #   make demo           deps, build, then the closed-loop simulator run -> out/demo/report.html
 #   make demo-match     the matcher alone on the OpenCV "aloe" pair -> out/demo-match
+#   make install        install fuzzystereo and the default configs under PREFIX (/usr/local)
 #   make clean          remove build/ and out/   (make distclean also removes .venv)
 
 SHELL := /bin/bash
@@ -22,11 +23,18 @@ FUZZYSTEREO_DATASETS ?= $(abspath $(CURDIR)/../shared/datasets)
 export FUZZYSTEREO_DATASETS
 
 # ---- dependencies --------------------------------------------------------------------------------
+# The host's Debian architecture: amd64 on a build machine, arm64 on the robot itself (Raspberry Pi
+# OS bookworm). On an arm64 host the aarch64 build is the native one: no cross compiler (Debian has
+# no g++-aarch64-linux-gnu for arm64) and no qemu; the `:arm64` packages are then native ones.
+HOST_ARCH := $(shell dpkg --print-architecture 2>/dev/null || echo unknown)
 APT_PACKAGES := build-essential cmake ninja-build pkg-config \
   libopencv-dev opencv-doc libeigen3-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev \
   libgtest-dev googletest libbenchmark-dev libgpiod-dev libcamera-dev \
   python3-venv python3-dev \
-  g++-aarch64-linux-gnu qemu-user libgtest-dev:arm64 libtomlplusplus-dev:arm64 libgpiod-dev:arm64
+  libgtest-dev:arm64 libtomlplusplus-dev:arm64 libgpiod-dev:arm64
+ifneq ($(HOST_ARCH),arm64)
+APT_PACKAGES += g++-aarch64-linux-gnu qemu-user
+endif
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
 PYTHON3 ?= python3
@@ -101,8 +109,14 @@ test-python:
 	$(VENV_PY) -m pytest tests/python -q -rs
 
 # Unit tests cross-compiled for aarch64, run under qemu-aarch64 (CMAKE_CROSSCOMPILING_EMULATOR).
+# On an arm64 host (the robot) test-native has already run every unit test on aarch64.
+ifeq ($(HOST_ARCH),arm64)
+test-aarch64:
+	@echo "test-aarch64: this host is arm64; test-native ran the unit tests on aarch64 natively"
+else
 test-aarch64: build-aarch64
 	ctest --preset aarch64 -j $(NPROC)
+endif
 
 test-asan: deps build-asan
 	ctest --preset asan -j $(NPROC)
@@ -147,6 +161,15 @@ demo-match: deps build
 	set -x; \
 	build/default/fuzzystereo match --left "$$left" --right "$$right" --gt "$$gt" \
 	  --downscale 3 --max-disparity 80 --out $(DEMO_MATCH_OUT) --dump
+
+# ---- install (on the robot) -----------------------------------------------------------------------
+# The program and the default config files: PREFIX/bin/fuzzystereo, PREFIX/share/fuzzystereo/
+# (config/, fis/, sim/scenes/). The binary embeds its default config, so only your own config file
+# (e.g. /etc/fuzzystereo/robot.toml, docs/robot.md "systemd unit") is needed at run time.
+PREFIX ?= /usr/local
+.PHONY: install
+install: build
+	$(if $(filter 0,$(shell id -u)),,sudo) cmake --install build/default --prefix $(PREFIX)
 
 # ---- housekeeping --------------------------------------------------------------------------------
 .PHONY: clean distclean

@@ -46,8 +46,9 @@ set(CMAKE_CXX_FLAGS_INIT "-idirafter /usr/include")
 #     cross ld.so would otherwise load /lib/aarch64-linux-gnu/libc.so.6 from the multiarch package,
 #     a different glibc build than the loader; that mix hangs in pthread_create under qemu. Pin the
 #     loader's search to the cross toolchain's own libc/libstdc++/libgomp.
+# On an aarch64 host (building on the robot itself) the binaries run natively: no emulator.
 find_program(FS_QEMU_AARCH64 qemu-aarch64 qemu-aarch64-static)
-if(FS_QEMU_AARCH64)
+if(FS_QEMU_AARCH64 AND NOT CMAKE_HOST_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
   set(CMAKE_CROSSCOMPILING_EMULATOR
       ${FS_QEMU_AARCH64} -L /usr/${FS_CROSS_TRIPLE}
       -E LD_LIBRARY_PATH=/usr/${FS_CROSS_TRIPLE}/lib)
