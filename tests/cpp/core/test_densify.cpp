@@ -130,6 +130,26 @@ TEST(Densify, SpecklesMatchUnionFindReference) {
   detail::use_threads(0);
 }
 
+// Two runs of consecutive rows whose overlap connects only at its last pixel (the row below ramps
+// towards the row above): they form one component of 20 pixels, which stays at max_size 12; the two
+// 10-pixel halves alone would go. Catches a join that looks at part of the overlap only.
+TEST(Densify, SpecklesJoinWhereOnlyTheLastOverlapPixelConnects) {
+  ImageI16 d(12, 3, kInvalidDisp);
+  for (int x = 0; x < 10; ++x) {
+    d.at(x, 0) = 100;
+    d.at(x, 1) = static_cast<std::int16_t>(200 - 10 * x);  // steps of 10 <= 32; |d - 100| <= 32 only at x = 9
+  }
+  for (int threads : {1, 3}) {
+    detail::use_threads(threads);
+    ImageI16 a = d;
+    ImageU8 removed(12, 3, 0);
+    EXPECT_EQ(remove_speckles(a, 12, 2 * kDispScale, &removed), 0) << "threads " << threads;
+    EXPECT_EQ(a.data, d.data);
+    EXPECT_EQ(speckles_reference(d, 12, 2 * kDispScale).data, d.data);  // the reference agrees
+  }
+  detail::use_threads(0);
+}
+
 // The plain median fill (threshold 0) and the slant-aware fill (interpolate_max_diff, 3
 // thresholds) against the per-pixel ray walk, with 1 and 3 threads (rows and ray planes are split
 // between threads).

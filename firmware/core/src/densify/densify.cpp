@@ -19,29 +19,25 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
   // 4-connected components of valid pixels whose neighbours differ by <= max_diff_q4 (the rule of
   // OpenCV's filterSpeckles, which fs_core cannot call); components of <= max_size pixels go.
   // Three passes on runs: a run is a maximal stretch of a row whose consecutive pixels connect.
-  //   1. per row, in parallel: the runs and each pixel's run index within its row (-1: invalid);
+  //   1. per row, in parallel: the runs;
   //   2. serial: runs numbered row by row, runs of consecutive rows joined (union-find) where a
   //      pixel connects to the one above it;
   //   3. per row, in parallel: the runs of small components set invalid.
   struct SRun {
     std::int32_t x0, x1;
   };
-  const std::size_t uw = static_cast<std::size_t>(w);
   std::vector<std::vector<SRun>> row_runs(static_cast<std::size_t>(h));
-  std::vector<std::int32_t> local_of(uw * std::size_t(h));  // every entry written in pass 1
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (int y = 0; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
-    std::int32_t* lo = local_of.data() + std::size_t(y) * uw;
     std::vector<SRun>& rr = row_runs[std::size_t(y)];
     int x = 0;
     while (x < w) {
-      if (d[x] == kInvalidDisp) { lo[x++] = -1; continue; }
+      if (d[x] == kInvalidDisp) { ++x; continue; }
       int e = x + 1;
       while (e < w && d[e] != kInvalidDisp && std::abs(d[e] - d[e - 1]) <= max_diff_q4) ++e;
-      std::fill(lo + x, lo + e, static_cast<std::int32_t>(rr.size()));
       rr.push_back({x, e});
       x = e;
     }
@@ -51,19 +47,28 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
     row_begin[std::size_t(y) + 1] = row_begin[std::size_t(y)] + static_cast<std::int32_t>(row_runs[std::size_t(y)].size());
   const auto nruns = static_cast<std::size_t>(row_begin.back());
   detail::MinRootUnionFind uf(nruns);
+  // Runs of consecutive rows join where they overlap and one pixel of the overlap connects to the
+  // one above it: the overlapping pairs are walked in order (two pointers) and each pair's overlap
+  // is scanned only up to its first connecting pixel. The components, and so their roots (the
+  // smallest run index), do not depend on the order of the unions.
   for (int y = 1; y < h; ++y) {
     const std::int16_t* d = disp.row(y);
     const std::int16_t* u = disp.row(y - 1);
-    const std::int32_t* lo = local_of.data() + std::size_t(y) * uw;
-    const std::int32_t* lu = lo - w;
+    const std::vector<SRun>& cur = row_runs[std::size_t(y)];
+    const std::vector<SRun>& above = row_runs[std::size_t(y) - 1];
     const std::int32_t base = row_begin[std::size_t(y)], base_u = row_begin[std::size_t(y) - 1];
-    std::int32_t last_a = -1, last_b = -1;  // the same pair of runs repeats along their overlap
-    for (int x = 0; x < w; ++x) {
-      if (lo[x] < 0 || lu[x] < 0 || std::abs(d[x] - u[x]) > max_diff_q4) continue;
-      if (lo[x] == last_a && lu[x] == last_b) continue;
-      last_a = lo[x];
-      last_b = lu[x];
-      uf.unite(base + lo[x], base_u + lu[x]);
+    std::size_t j = 0;
+    for (std::size_t i = 0; i < cur.size(); ++i) {
+      const SRun& a = cur[i];
+      while (j < above.size() && above[j].x1 <= a.x0) ++j;  // runs above ending before a
+      for (std::size_t k = j; k < above.size() && above[k].x0 < a.x1; ++k) {
+        const int x0 = std::max(a.x0, above[k].x0), x1 = std::min(a.x1, above[k].x1);
+        for (int x = x0; x < x1; ++x)
+          if (std::abs(d[x] - u[x]) <= max_diff_q4) {
+            uf.unite(base + static_cast<std::int32_t>(i), base_u + static_cast<std::int32_t>(k));
+            break;
+          }
+      }
     }
   }
   std::vector<std::int32_t> parent(nruns);  // each run's root
