@@ -238,6 +238,7 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
   {
     std::vector<std::int16_t> horiz(2 * uw), c(8 * uw), hsteps(interp ? 2 * uw : 0), tg(interp ? 8 * uw : 0);
     std::vector<std::int32_t> idx(uw);
+    std::vector<std::array<int, 2>> hole_runs(uw);  // [x0, x1) of each run of holes in the row
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(static)
 #endif
@@ -265,36 +266,46 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
       // Gather the pixels without an estimate (the left border band takes its own rule).
       const std::size_t row = static_cast<std::size_t>(y) * uw;
       std::int16_t* o = out.row(y);
-      int m = 0;
-      for (int x = 0; x < w; ++x) {
-        if (src[x] != kInvalidDisp) continue;
+      // Holes come in runs along the row (those of the left border band are a prefix: the invalid
+      // pixels before the row's first estimate), so the ray values are gathered run by run, one
+      // contiguous copy per run and plane, in the order of idx.
+      int m = 0, nh = 0;
+      for (int x = 0; x < w;) {
+        if (src[x] != kInvalidDisp) { ++x; continue; }
         if (from_left[x] == kNone && from_right[x] != kNone) {
           // Left image border band (x < d): nothing to the left can match; extend the row's first
           // estimate, as the rays from above/below there cross unrelated, farther structure.
           o[x] = from_right[x];
           if (filled) filled->at(x, y) = 1;
+          ++x;
           continue;
         }
-        idx[std::size_t(m++)] = x;
+        int e = x + 1;  // a run of holes (none of them in the border band: that ends at x)
+        while (e < w && src[e] == kInvalidDisp) ++e;
+        hole_runs[std::size_t(nh++)] = {x, e};
+        for (; x < e; ++x) idx[std::size_t(m++)] = x;
       }
       if (m == 0) continue;
+      auto gather = [&](const std::int16_t* plane, std::int16_t* dst) {
+        for (int r = 0; r < nh; ++r) {
+          const auto [x0, x1] = hole_runs[std::size_t(r)];
+          dst = std::copy(plane + x0, plane + x1, dst);
+        }
+      };
       const std::int16_t* planes[8] = {from_left,         from_right,        rays + row,
                                        rays + n + row, rays + 2 * n + row, rays + 3 * n + row,
                                        rays + 4 * n + row, rays + 5 * n + row};
       std::int16_t* cc[8];
       for (int k = 0; k < 8; ++k) {
         cc[k] = c.data() + std::size_t(k) * uw;
-        for (int i = 0; i < m; ++i) cc[k][i] = planes[k][idx[std::size_t(i)]];
+        gather(planes[k], cc[k]);
       }
       if (interp) {
         // Opposite rays on one surface: both slots take their interpolation (interpolate_pair).
         const std::int16_t* tplanes[8] = {left_steps, right_steps, steps + row, steps + n + row,
                                           steps + 2 * n + row, steps + 3 * n + row,
                                           steps + 4 * n + row, steps + 5 * n + row};
-        for (int k = 0; k < 8; ++k) {
-          std::int16_t* g = tg.data() + std::size_t(k) * uw;
-          for (int i = 0; i < m; ++i) g[i] = tplanes[k][idx[std::size_t(i)]];
-        }
+        for (int k = 0; k < 8; ++k) gather(tplanes[k], tg.data() + std::size_t(k) * uw);
         for (const auto& pr : kOpposite) {
           std::int16_t* __restrict a = cc[pr[0]];
           std::int16_t* __restrict b = cc[pr[1]];
