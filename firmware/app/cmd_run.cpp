@@ -1,5 +1,6 @@
 // fuzzystereo run        — the robot: capture -> match -> detect -> track -> plan -> motors.
 // fuzzystereo sim suite  — N seeded closed-loop scenarios in the simulator, faster than real time.
+#include <cstdlib>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -225,6 +226,8 @@ void run_run(const RunOptions& o) {
     json st;
     for (const auto& [k, s] : r.stages) st[k] = {{"median", s.median}, {"p90", s.p90}, {"max", s.max}};
     j["timing_ms"] = st;
+    const char* wait_policy = std::getenv("OMP_WAIT_POLICY");  // main.cpp: passive unless set
+    j["omp_wait_policy"] = wait_policy ? wait_policy : "";
     std::ofstream(o.json_out) << j.dump(2) << '\n';
   }
 }

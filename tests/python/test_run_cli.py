@@ -15,8 +15,8 @@ import pytest
 pytestmark = [pytest.mark.firmware, pytest.mark.slow]
 
 
-def run(firmware_bin, *args, timeout=120):
-    return subprocess.run([str(firmware_bin), *args], capture_output=True, text=True, timeout=timeout)
+def run(firmware_bin, *args, timeout=120, env=None):
+    return subprocess.run([str(firmware_bin), *args], capture_output=True, text=True, timeout=timeout, env=env)
 
 
 def test_mission_reaches_goal_without_collision(firmware_bin, common_dir, tmp_path):
@@ -53,3 +53,20 @@ def test_bad_goal_is_a_clear_error(firmware_bin, common_dir):
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--goal", "x")
     assert p.returncode == 2
     assert "--goal" in p.stderr
+
+
+@pytest.mark.parametrize("given, expected", [(None, "passive"), ("active", "active")])
+def test_run_waits_passively_in_openmp_unless_told_otherwise(firmware_bin, common_dir, tmp_path, given, expected):
+    # main.cpp re-executes `run` with OMP_WAIT_POLICY=passive when the variable is unset (spinning
+    # barriers stall the matcher when the robot's other processes take a core); a value the user
+    # set is kept.
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    if given is not None:
+        env["OMP_WAIT_POLICY"] = given
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
+            "--max-frames", "3", "--json", str(out), env=env)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(out.read_text())["omp_wait_policy"] == expected
