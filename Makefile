@@ -57,7 +57,7 @@ deps-apt:
 	if [ -z "$$missing" ]; then echo "deps: all apt packages present"; exit 0; fi; \
 	echo "deps: installing:$$missing"; \
 	foreign=" $$(dpkg --print-foreign-architectures | tr '\n' ' ') "; \
-	if [[ "$$missing" == *:arm64* && "$$foreign" != *" arm64 "* ]]; then \
+	if [[ "$$native" != arm64 && "$$missing" == *:arm64* && "$$foreign" != *" arm64 "* ]]; then \
 	  $(SUDO) dpkg --add-architecture arm64; \
 	fi; \
 	$(SUDO) apt-get update; \
