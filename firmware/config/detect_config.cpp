@@ -71,6 +71,11 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.road_slope_prior_rel = v.num("detect.road_slope_prior_rel");
   p.below_road_drop_share = v.num("detect.below_road_drop_share");
   p.seen_through_drop_share = v.num("detect.seen_through_drop_share");
+  p.foot_gap_extend = v.flag("detect.foot_gap_extend");
+  p.foot_gap_max_occluded = v.num("detect.foot_gap_max_occluded");
+  p.inside_drop_min_share = v.num("detect.inside_drop_min_share");
+  p.inside_drop_min_ring = v.num("detect.inside_drop_min_ring");
+  p.inside_drop_ring_px = v.integer("detect.inside_drop_ring_px");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");

@@ -271,3 +271,49 @@ def test_road_slope_prior_range():
     assert refdet.road_slope_range(params(road_slope_prior_rel=0.5), {**calib, "height_m": 0.0}) == pytest.approx((0.02, 2.0))
     lo, hi = refdet.road_slope_range(params(road_slope_prior_rel=0.1, road_slope_max=0.1), calib)
     assert lo > hi  # no line can be accepted
+
+
+def test_inside_nearer_drops_and_renumbers():
+    # As tests/cpp/core/test_detect_linkage.cpp DetectInsideNearer: H at 20 px (rows 10..49, columns 10..49)
+    # with a farther blob F at 15 px in a hole reaching its bottom edge, G at 15 px beside H.
+    ol = np.zeros((60, 100), np.int32)
+    ol[10:50, 10:50] = 1
+    ol[35:50, 20:36] = 2
+    ol[15:46, 60:80] = 3
+    obs = [refdet.Obstacle(0, (10, 10, 49, 49), int((ol == 1).sum()), 20.0, 1.0, 0.0, "near"),
+           refdet.Obstacle(1, (20, 35, 35, 49), 240, 15.0, 1.0, 0.0, "near"),
+           refdet.Obstacle(2, (60, 15, 79, 45), 620, 15.0, 1.0, 0.0, "near")]
+    p = params(inside_drop_min_share=0.85, inside_drop_min_ring=0.25, inside_drop_ring_px=6)
+    assert len(refdet.drop_seen_through(list(obs), ol.copy(), params(seen_through_drop_share=0.5))) == 3
+    assert len(refdet.drop_inside_nearer(list(obs), ol.copy(), params(inside_drop_min_share=0.0))) == 3
+    kept = refdet.drop_inside_nearer(list(obs), ol, p)
+    assert [o.box[0] for o in kept] == [10, 60] and [o.id for o in kept] == [0, 1]
+    assert ol[40, 25] == 0 and ol[30, 70] == 2 and ol[12, 12] == 1
+    # A real obstacle seen in the gap of a box that joined two blocks: the band around it holds none of them.
+    ol2 = np.zeros((60, 100), np.int32)
+    ol2[10:50, 10:20] = 1
+    ol2[10:50, 60:70] = 1
+    ol2[15:46, 30:50] = 2
+    obs2 = [refdet.Obstacle(0, (10, 10, 69, 49), 800, 20.0, 1.0, 0.0, "near"),
+            refdet.Obstacle(1, (30, 15, 49, 45), 620, 15.0, 1.0, 0.0, "near")]
+    assert len(refdet.drop_inside_nearer(list(obs2), ol2.copy(), p)) == 2
+    assert len(refdet.drop_inside_nearer(list(obs2), ol2.copy(), params(inside_drop_min_share=0.85,
+                                                                        inside_drop_min_ring=0.0))) == 1
+
+
+def test_gap_to_the_foot_closed_unless_hidden():
+    # As tests/cpp/core/test_detect_extent.cpp GapToTheFoot...: road line d = 0.2 (v - 50), F at 10 px measured
+    # in rows 20..60 (foot row 99), N at 15 px hiding the last rows of the gap.
+    def run(n_rows, n_disp, **kw):
+        ol = np.zeros((120, 40), np.int32)
+        ol[20:61, 10:31] = 2
+        ol[100 - n_rows:100, 5:36] = 1
+        obs = [refdet.Obstacle(0, (5, 100 - n_rows, 35, 99), 31 * n_rows, n_disp, 1.0, 0.0, "near"),
+               refdet.Obstacle(1, (10, 20, 30, 60), 21 * 41, 10.0, 1.0, 0.0, "near")]
+        refdet.extend_over_gap(obs, ol, 0.2, -10.0, 51, 120, params(**{"foot_gap_extend": True,
+                                                                       "foot_gap_max_occluded": 0.3, **kw}))
+        return obs[0].box[3], obs[1].box[3]
+    assert run(10, 15.0) == (119, 99)     # 26 % of the gap hidden: F reaches its foot; N its (below the image)
+    assert run(20, 15.0)[1] == 60         # 51 % hidden: F's lower part is behind N
+    assert run(20, 10.625)[1] == 99       # N within merge_max_rel_disparity: not an occluder
+    assert run(10, 15.0, foot_gap_extend=False) == (99, 60)

@@ -3,6 +3,7 @@
 // columns cut on a hand-made label image.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <climits>
 #include <cmath>
 #include <cstdint>
@@ -67,6 +68,7 @@ TEST(DetectExtent, SceneBoxesReachTheirTrueBottomRow) {
   DetectParams p;
   for (bool on : {false, true}) {
     p.foot_extend = on;
+    p.foot_gap_extend = on;  // the gap rule (session 13) reaches the foot row too: both off for the short boxes
     const DetectResult r = Detector(p).detect(s.disp, s.rgb, s.calib);
     ASSERT_EQ(r.obstacles.size(), 2u);
     for (int i = 0; i < 2; ++i) {
@@ -179,6 +181,59 @@ TEST(DetectExtent, LowSideColumnsAreCutUnlessTheSkyTookTheirTop) {
     detect::trim_sparse_columns(obs, lab, calib, p, &sky, &disp);
     EXPECT_EQ(obs[0].x1, 44) << share;
   }
+}
+
+TEST(DetectExtent, GapToTheFootIsClosedUnlessANearerObstacleHidesIt) {
+  // Road line d = 0.2 * (v - 50) px (line_table). F (id 1, d = 10 px = 160 Q4) was measured only in rows
+  // 20..60 (columns 10..30): it stands where the line reaches 160 (row 100), so its foot row is 99 and the
+  // gap is rows 61..99 x columns 10..30 (39 x 21 = 819 px). N (id 0, d = 15 px = 240 Q4, nearer by 50 %)
+  // covers part of that gap, columns 5..35.
+  const auto line = line_table(120);
+  auto make = [](int n_rows) {
+    ImageI32 labels(40, 120, 0);
+    for (int y = 20; y <= 60; ++y)
+      for (int x = 10; x <= 30; ++x) labels.at(x, y) = 2;
+    for (int y = 100 - n_rows; y < 100; ++y)
+      for (int x = 5; x <= 35; ++x) labels.at(x, y) = 1;
+    return labels;
+  };
+  auto obstacles = [](int n_rows, int n_q4) {
+    Obstacle n, f;
+    n.id = 0, n.x0 = 5, n.x1 = 35, n.y0 = 100 - std::max(n_rows, 1), n.y1 = 99, n.disparity_q4 = n_q4;
+    f.id = 1, f.x0 = 10, f.x1 = 30, f.y0 = 20, f.y1 = 60, f.disparity_q4 = 160;
+    return std::vector<Obstacle>{n, f};
+  };
+  DetectParams p;
+  p.foot_gap_extend = true;
+  p.foot_gap_max_occluded = 0.3;
+  // N hides 10 of the 39 gap rows (210 of 819 px, 26 % <= 30 %): F ends at its foot row.
+  auto obs = obstacles(10, 240);
+  detect::extend_over_gap(obs, make(10), line, p);
+  EXPECT_EQ(obs[1].y1, 99);
+  EXPECT_EQ(obs[1].y0, 20);
+  EXPECT_EQ(obs[1].x0, 10);
+  EXPECT_EQ(obs[1].x1, 30);
+  // N's own foot is below the image (the line reaches 240 at row 125) and nothing nearer lies below it: it
+  // ends at the last row.
+  EXPECT_EQ(obs[0].y1, 119);
+  // N hides 20 rows (51 %): F's lower part is behind N, the box stays.
+  obs = obstacles(20, 240);
+  detect::extend_over_gap(obs, make(20), line, p);
+  EXPECT_EQ(obs[1].y1, 60);
+  // The same 20 rows at 170 Q4 (6 % nearer, within merge_max_rel_disparity): not an occluder, F extends.
+  obs = obstacles(20, 170);
+  detect::extend_over_gap(obs, make(20), line, p);
+  EXPECT_EQ(obs[1].y1, 99);
+  // Off: unchanged.
+  p.foot_gap_extend = false;
+  obs = obstacles(10, 240);
+  detect::extend_over_gap(obs, make(10), line, p);
+  EXPECT_EQ(obs[1].y1, 60);
+  // No road line (no row has a value): unchanged.
+  p.foot_gap_extend = true;
+  obs = obstacles(10, 240);
+  detect::extend_over_gap(obs, make(10), std::vector<std::int32_t>(120, INT32_MIN), p);
+  EXPECT_EQ(obs[1].y1, 60);
 }
 
 }  // namespace

@@ -160,6 +160,91 @@ TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
   EXPECT_EQ(q.size(), 2u);
 }
 
+TEST(DetectInsideNearer, FartherBlobInANearerBoxIsDropped) {
+  // H (id 0): a face at Q4 320, rows 10..49, columns 10..49, with a hole where the matcher measured a blob F
+  // (id 1) at Q4 240 (25 % farther): rows 35..49, columns 20..35 — reaching H's bottom edge, so H has no
+  // pixels below F and the seen-through rule keeps it. G (id 2) at 240 beside H (columns 60..79).
+  ImageI32 labels(100, 60, 0);
+  std::vector<Obstacle> o;
+  o.push_back(box_obstacle(1, 20, 35, 35, 49, 240, labels));  // F first so that H's rectangle leaves its hole
+  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
+  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
+  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  DetectParams p;
+  p.inside_drop_min_share = 0.85;
+  p.inside_drop_min_ring = 0.25;
+  p.inside_drop_ring_px = 6;
+  p.seen_through_drop_share = 0.5;
+  auto st = o;
+  ImageI32 l0 = labels;
+  detect::drop_seen_through(st, l0, p);
+  EXPECT_EQ(st.size(), 3u);  // not enclosed above and below
+  auto on = o;
+  ImageI32 l1 = labels;
+  detect::drop_inside_nearer(on, l1, p);
+  ASSERT_EQ(on.size(), 2u);
+  EXPECT_EQ(on[0].disparity_q4, 320);
+  EXPECT_EQ(on[1].x0, 60);  // G kept, renumbered id 1
+  EXPECT_EQ(on[1].id, 1);
+  EXPECT_EQ(l1.at(25, 40), 0);  // F's pixels left the labels
+  EXPECT_EQ(l1.at(70, 30), 2);  // G's pixels renumbered
+  EXPECT_EQ(l1.at(12, 12), 1);
+  // Off (share 0): kept.
+  auto off = o;
+  ImageI32 l2 = labels;
+  p.inside_drop_min_share = 0.0;
+  detect::drop_inside_nearer(off, l2, p);
+  EXPECT_EQ(off.size(), 3u);
+  p.inside_drop_min_share = 0.85;
+  // Within fragment merging's tolerance (F at 300 vs 320: 6.7 %) F is not farther: kept.
+  auto near = o;
+  near[1].disparity_q4 = 300;
+  ImageI32 l3 = labels;
+  detect::drop_inside_nearer(near, l3, p);
+  EXPECT_EQ(near.size(), 3u);
+  // F with more pixels than H: H is no host.
+  auto big = o;
+  big[1].pixel_count = big[0].pixel_count + 1;
+  ImageI32 l4 = labels;
+  detect::drop_inside_nearer(big, l4, p);
+  EXPECT_EQ(big.size(), 3u);
+}
+
+TEST(DetectInsideNearer, FartherObstacleSeenThroughAGapOrBesideTheBoxIsKept) {
+  // H (id 0, Q4 320) is two blocks joined into one box, columns 10..19 and 60..69, rows 10..49 (a box too
+  // wide); F (id 1, Q4 240) stands in the gap, columns 30..49, rows 15..45: its box lies inside H's, but the
+  // band of 6 px around it (columns 24..55) holds none of H's pixels — a real obstacle seen between. K (id 2,
+  // Q4 240) half outside H's box (columns 62..77): box share 0.5 < 0.85.
+  ImageI32 labels(100, 60, 0);
+  std::vector<Obstacle> o;
+  o.push_back(box_obstacle(0, 10, 10, 19, 49, 320, labels));
+  {
+    Obstacle right = box_obstacle(0, 60, 10, 69, 49, 320, labels);
+    o[0].x1 = 69, o[0].pixel_count += right.pixel_count;
+  }
+  o.push_back(box_obstacle(1, 30, 15, 49, 45, 240, labels));
+  ImageI32 kl = labels;
+  for (int y = 20; y <= 40; ++y)
+    for (int x = 70; x <= 77; ++x) kl.at(x, y) = 3;
+  Obstacle k;
+  k.id = 2, k.x0 = 62, k.y0 = 20, k.x1 = 77, k.y1 = 40, k.disparity_q4 = 240, k.pixel_count = 8 * 21;
+  o.push_back(k);
+  DetectParams p;
+  p.inside_drop_min_share = 0.85;
+  p.inside_drop_min_ring = 0.25;
+  p.inside_drop_ring_px = 6;
+  auto q = o;
+  detect::drop_inside_nearer(q, kl, p);
+  EXPECT_EQ(q.size(), 3u);
+  // Without the band test (min_ring 0) F goes; K stays (its box is not inside enough).
+  p.inside_drop_min_ring = 0.0;
+  q = o;
+  ImageI32 l2 = kl;
+  detect::drop_inside_nearer(q, l2, p);
+  ASSERT_EQ(q.size(), 2u);
+  EXPECT_EQ(q[1].x0, 62);
+}
+
 TEST(DetectLinkage, SmallBridgeNoLongerJoinsObstaclesSideBySide) {
   // The bridge scene with single linkage and merge_bridge_max_px: C joins its anchor A (the closer pair,
   // 7.5 % against 8.1 %) and not B, whose median is 15 % from A's and which stands beside A.

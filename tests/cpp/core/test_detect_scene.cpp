@@ -210,6 +210,11 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(p.merge_bridge_max_px, d.merge_bridge_max_px);  // session 10
   EXPECT_DOUBLE_EQ(p.merge_bridge_max_overlap, d.merge_bridge_max_overlap);
   EXPECT_DOUBLE_EQ(p.seen_through_drop_share, d.seen_through_drop_share);
+  EXPECT_EQ(p.foot_gap_extend, d.foot_gap_extend);  // session 13
+  EXPECT_DOUBLE_EQ(p.foot_gap_max_occluded, d.foot_gap_max_occluded);
+  EXPECT_DOUBLE_EQ(p.inside_drop_min_share, d.inside_drop_min_share);
+  EXPECT_DOUBLE_EQ(p.inside_drop_min_ring, d.inside_drop_min_ring);
+  EXPECT_EQ(p.inside_drop_ring_px, d.inside_drop_ring_px);
   EXPECT_DOUBLE_EQ(p.sky_max_texture, d.sky_max_texture);
   EXPECT_EQ(p.sky_texture_radius, d.sky_texture_radius);
   EXPECT_DOUBLE_EQ(p.near_m, d.near_m);
@@ -230,6 +235,10 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_THROW(parse_config("[detect]\nmerge_bridge_max_px = -1\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nmerge_bridge_max_overlap = 1.5\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nseen_through_drop_share = 2.0\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\nfoot_gap_max_occluded = 1.5\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\ninside_drop_min_share = -0.1\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\ninside_drop_min_ring = 1.5\n", "t"), ConfigError);
+  EXPECT_THROW(parse_config("[detect]\ninside_drop_ring_px = 0\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_texture_radius = 0\n", "t"), ConfigError);
   EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);
 }

@@ -117,6 +117,11 @@ struct DetectParams {
                                    // cut off the box (0 = off)
   double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
                                    // obstacle's depth) lies lower than this share of the box height (0 = off)
+  bool foot_gap_extend = true;     // a box whose bottom lies above its foot row (the road line reaches its
+                                   // disparity lower down) ends at the foot row when the gap between holds few
+                                   // pixels of nearer obstacles (session 13; the lower part the matcher lost)
+  double foot_gap_max_occluded = 0.3;  // ... at most this share of the gap (rows below the box to the foot,
+                                   // the box's columns) belongs to obstacles nearer by > merge_max_rel_disparity
   // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
   double road_slope_prior_rel = 0.5;  // with a known mounting (calib height_m > 0) the road line's slope must lie
                                    // within a factor 1 + this of B*cos(pitch)/h (0 = off; see road_slope_range)
@@ -125,6 +130,12 @@ struct DetectParams {
                                    // the default: 0.5 cost closed-loop safe stops, docs/results-detection.md)
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
+  double inside_drop_min_share = 0.0;  // a farther obstacle whose box lies at least this share inside the box of a
+                                   // larger obstacle nearer by > merge_max_rel_disparity ... (session 13; 0 = off,
+                                   // the default: 0.85 measured, a seed-11 ring scenario collided with it on)
+  double inside_drop_min_ring = 0.25;  // ... and whose surrounding band holds at least this share of the nearer
+                                   // one's pixels is dropped (a blob of background disparity in its face)
+  int inside_drop_ring_px = 6;     // ... the band: this many pixels around the farther obstacle's box [px]
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -295,6 +306,14 @@ ObstacleClass classify_distance(double z_m, const DetectParams& p);
 // line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
 void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
                       const DetectParams& p);
+// Ground contact over a gap (docs/detection.md "(e) Box extent", session 13): an obstacle of median disparity d
+// whose box ends above its foot row (the last row from its bottom on whose line value is below d; the last
+// image row when the line stays below d) ends at the foot row when, in the rectangle of the box's columns and
+// the rows below the box down to the foot row, at most foot_gap_max_occluded of the pixels carry the label
+// (labels == id + 1) of an obstacle nearer by more than merge_max_rel_disparity (median Q4 > d * (1 + rel)).
+// Only y1 changes. foot_gap_extend = false or no line: unchanged.
+void extend_over_gap(std::vector<Obstacle>& obstacles, const ImageI32& labels, const std::vector<std::int32_t>& line_q4,
+                     const DetectParams& p);
 // Sparse and low sides: per obstacle, the box's outermost columns holding fewer of its pixels (labels ==
 // id + 1) than trim_col_min_share of its fullest column, or whose top — highest own pixel, or sky pixel
 // (sky != 0) whose disparity is within max(cc_min_step_px, cc_max_rel_step * d) of the obstacle's — lies
@@ -318,6 +337,13 @@ void drop_below_road(std::vector<Obstacle>& obstacles, ImageI32& labels, const s
 // above F's highest and below F's lowest pixel of that column hold >= seen_through_drop_share of F's pixels
 // (labels == id + 1); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
 void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
+
+// Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 13): an obstacle F is dropped when
+// one obstacle H with more pixels and median Q4 > F's * (1 + merge_max_rel_disparity) has a box holding >=
+// inside_drop_min_share of F's box area, and the band of inside_drop_ring_px pixels around F's box (clipped to
+// the image) holds >= inside_drop_min_ring of H's pixels (labels == H.id + 1). Decided on the obstacles as they
+// are (no chains); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
+void drop_inside_nearer(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
 
 }  // namespace detect
 

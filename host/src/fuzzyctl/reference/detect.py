@@ -822,6 +822,63 @@ def drop_seen_through(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
     return _keep_renumbered(obstacles, ol, lambda o: o.id not in drop)
 
 
+def drop_inside_nearer(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
+    """Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 13): an obstacle F is dropped
+    when one obstacle H with more pixels and disparity > F's * (1 + merge_max_rel_disparity) has a box holding
+    >= inside_drop_min_share of F's box area and the band of inside_drop_ring_px pixels around F's box (clipped
+    to the image) holds >= inside_drop_min_ring of H's pixels; the rest are renumbered (ids, ol)."""
+    share = float(getattr(p, "inside_drop_min_share", 0.0))
+    if share <= 0 or len(obstacles) < 2:
+        return obstacles
+    ring = float(getattr(p, "inside_drop_min_ring", 0.0))
+    m = max(0, int(getattr(p, "inside_drop_ring_px", 0)))
+    h, w = ol.shape
+    drop = set()
+    for f in obstacles:
+        fx0, fy0, fx1, fy1 = f.box
+        area = (fx1 - fx0 + 1) * (fy1 - fy0 + 1)
+        for g in obstacles:
+            if g.id == f.id or g.pixel_count <= f.pixel_count or \
+                    g.disparity_px <= f.disparity_px * (1.0 + p.merge_max_rel_disparity) + 1e-9:
+                continue
+            gx0, gy0, gx1, gy1 = g.box
+            iw = min(fx1, gx1) - max(fx0, gx0) + 1
+            ih = min(fy1, gy1) - max(fy0, gy0) + 1
+            if iw <= 0 or ih <= 0 or iw * ih < share * area:
+                continue
+            bx0, by0, bx1, by1 = max(0, fx0 - m), max(0, fy0 - m), min(w - 1, fx1 + m), min(h - 1, fy1 + m)
+            win = ol[by0:by1 + 1, bx0:bx1 + 1] == g.id + 1
+            band = win.size - area  # F's box lies inside the clipped window
+            of_g = int(win.sum()) - int(win[fy0 - by0:fy1 - by0 + 1, fx0 - bx0:fx1 - bx0 + 1].sum())
+            if band > 0 and of_g >= ring * band:
+                drop.add(f.id)
+                break
+    return _keep_renumbered(obstacles, ol, lambda o: o.id not in drop)
+
+
+def extend_over_gap(obstacles: list, ol: np.ndarray, a: float, b: float, horizon: int, h: int, p: DetectParams) -> None:
+    """Ground contact over a gap (docs/detection.md "(e) Box extent", session 13): a box whose bottom lies above
+    its foot row (the last row from its bottom on whose road line a*v + b is still below the obstacle's disparity;
+    rows above the horizon have no line value) ends at the foot row when at most foot_gap_max_occluded of the gap
+    (the box's columns, the rows below it to the foot) carries the label of an obstacle nearer by more than
+    merge_max_rel_disparity."""
+    if not bool(getattr(p, "foot_gap_extend", False)):
+        return
+    max_occ = float(getattr(p, "foot_gap_max_occluded", 0.0))
+    for o in obstacles:
+        x0, y0, x1, y1 = o.box
+        foot = y1
+        while foot + 1 < h and (foot + 1 < horizon or a * (foot + 1) + b < o.disparity_px):
+            foot += 1
+        if foot <= y1:
+            continue
+        nearer = [g.id + 1 for g in obstacles if g.disparity_px > o.disparity_px * (1.0 + p.merge_max_rel_disparity) + 1e-9]
+        gap = ol[y1 + 1:foot + 1, x0:x1 + 1]
+        occluded = int(np.isin(gap, nearer).sum()) if nearer else 0
+        if occluded <= max_occ * gap.size:
+            o.box = (x0, y0, x1, foot)
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
@@ -901,6 +958,9 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     trim_sparse_columns(out, ol, calib, p, sky, disp)  # box extent, docs/detection.md "(e) Box extent"
     if found:
         extend_to_ground(out, a, b, horizon, h, p)
+    out = drop_inside_nearer(out, ol, p)  # docs/detection.md "(e) Inside a nearer face"
+    if found:
+        extend_over_gap(out, ol, a, b, horizon, h, p)  # docs/detection.md "(e) Box extent"
     return DetectReferenceResult(bins, vd, found, a, b, horizon, road_raw, road, skipped, rows, sky,
                                  cand.astype(np.uint8), centres, np.where(labels >= 0, labels, 255).astype(np.uint8),
                                  kept, out, ol)
