@@ -68,7 +68,7 @@ TEST(DetectExtent, SceneBoxesReachTheirTrueBottomRow) {
   DetectParams p;
   for (bool on : {false, true}) {
     p.foot_extend = on;
-    p.foot_gap_extend = on;  // the gap rule (session 13) reaches the foot row too: both off for the short boxes
+    p.foot_gap_extend = on;  // the gap rule (session 14) reaches the foot row too: both off for the short boxes
     const DetectResult r = Detector(p).detect(s.disp, s.rgb, s.calib);
     ASSERT_EQ(r.obstacles.size(), 2u);
     for (int i = 0; i < 2; ++i) {

@@ -210,7 +210,7 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_EQ(p.merge_bridge_max_px, d.merge_bridge_max_px);  // session 10
   EXPECT_DOUBLE_EQ(p.merge_bridge_max_overlap, d.merge_bridge_max_overlap);
   EXPECT_DOUBLE_EQ(p.seen_through_drop_share, d.seen_through_drop_share);
-  EXPECT_EQ(p.foot_gap_extend, d.foot_gap_extend);  // session 13
+  EXPECT_EQ(p.foot_gap_extend, d.foot_gap_extend);  // session 14
   EXPECT_DOUBLE_EQ(p.foot_gap_max_occluded, d.foot_gap_max_occluded);
   EXPECT_DOUBLE_EQ(p.inside_drop_min_share, d.inside_drop_min_share);
   EXPECT_DOUBLE_EQ(p.inside_drop_min_ring, d.inside_drop_min_ring);

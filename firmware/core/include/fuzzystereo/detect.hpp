@@ -117,9 +117,9 @@ struct DetectParams {
                                    // cut off the box (0 = off)
   double trim_col_top_share = 0.5; // ... and side columns whose highest pixel (or sky-masked pixel at the
                                    // obstacle's depth) lies lower than this share of the box height (0 = off)
-  bool foot_gap_extend = true;     // a box whose bottom lies above its foot row (the road line reaches its
+  bool foot_gap_extend = false;    // a box whose bottom lies above its foot row (the road line reaches its
                                    // disparity lower down) ends at the foot row when the gap between holds few
-                                   // pixels of nearer obstacles (session 13; the lower part the matcher lost)
+                                   // pixels of nearer obstacles (session 14; the lower part the matcher lost)
   double foot_gap_max_occluded = 0.3;  // ... at most this share of the gap (rows below the box to the foot,
                                    // the box's columns) belongs to obstacles nearer by > merge_max_rel_disparity
   // ---- plausibility (session 7, docs/detection.md "(a) Slope prior", "(e) Below the road") ----
@@ -131,7 +131,7 @@ struct DetectParams {
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
   double inside_drop_min_share = 0.0;  // a farther obstacle whose box lies at least this share inside the box of a
-                                   // larger obstacle nearer by > merge_max_rel_disparity ... (session 13; 0 = off,
+                                   // larger obstacle nearer by > merge_max_rel_disparity ... (session 14; 0 = off,
                                    // the default: 0.85 measured, a seed-11 ring scenario collided with it on)
   double inside_drop_min_ring = 0.25;  // ... and whose surrounding band holds at least this share of the nearer
                                    // one's pixels is dropped (a blob of background disparity in its face)
@@ -306,7 +306,7 @@ ObstacleClass classify_distance(double z_m, const DetectParams& p);
 // line reaches that disparity (the last image row if it never does). line_q4 as road_line_table.
 void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::int32_t>& line_q4,
                       const DetectParams& p);
-// Ground contact over a gap (docs/detection.md "(e) Box extent", session 13): an obstacle of median disparity d
+// Ground contact over a gap (docs/detection.md "(e) Box extent", session 14): an obstacle of median disparity d
 // whose box ends above its foot row (the last row from its bottom on whose line value is below d; the last
 // image row when the line stays below d) ends at the foot row when, in the rectangle of the box's columns and
 // the rows below the box down to the foot row, at most foot_gap_max_occluded of the pixels carry the label
@@ -338,7 +338,7 @@ void drop_below_road(std::vector<Obstacle>& obstacles, ImageI32& labels, const s
 // (labels == id + 1); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
 void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
 
-// Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 13): an obstacle F is dropped when
+// Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 14): an obstacle F is dropped when
 // one obstacle H with more pixels and median Q4 > F's * (1 + merge_max_rel_disparity) has a box holding >=
 // inside_drop_min_share of F's box area, and the band of inside_drop_ring_px pixels around F's box (clipped to
 // the image) holds >= inside_drop_min_ring of H's pixels (labels == H.id + 1). Decided on the obstacles as they

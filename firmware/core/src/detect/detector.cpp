@@ -123,9 +123,9 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   // Box extent (our addition): sparse side columns cut, then the foot rows the road band removed.
   detect::trim_sparse_columns(r.obstacles, r.obstacle_labels, calib, p, &r.sky_mask, &disp);
   detect::extend_to_ground(r.obstacles, r.road_line_q4, p);
-  // Inside a nearer face (session 13): a farther blob whose box lies in a larger nearer obstacle's box.
+  // Inside a nearer face (session 14): a farther blob whose box lies in a larger nearer obstacle's box.
   detect::drop_inside_nearer(r.obstacles, r.obstacle_labels, p);
-  // Ground contact over a gap (session 13): the lower part the matcher lost, where nothing nearer hides it.
+  // Ground contact over a gap (session 14): the lower part the matcher lost, where nothing nearer hides it.
   detect::extend_over_gap(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
   lap(DetectStage::Objects);
   return r;

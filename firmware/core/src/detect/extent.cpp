@@ -40,7 +40,7 @@ void extend_to_ground(std::vector<Obstacle>& obstacles, const std::vector<std::i
   }
 }
 
-// Ground contact over a gap (session 13, docs/detection.md "(e) Box extent"). The matcher often measures only
+// Ground contact over a gap (session 14, docs/detection.md "(e) Box extent"). The matcher often measures only
 // the upper part of a plain or dark obstacle (the lower part has no disparity, or pieces of it fail the
 // u-disparity filter), so its box ends tens of rows above where it stands: 15 of the 206 misses on the 300
 // generated frames (session 12 defaults) had a box at their depth ending 15-150 rows above their bottom. An obstacle of median disparity d standing on the

@@ -60,7 +60,7 @@ void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const
   obstacles = std::move(kept);
 }
 
-// Inside a nearer face (session 13, docs/detection.md "(e) Inside a nearer face"): the box of a farther
+// Inside a nearer face (session 14, docs/detection.md "(e) Inside a nearer face"): the box of a farther
 // obstacle F lies almost entirely inside the box of a larger, nearer obstacle H, and H's own pixels surround
 // it (the band around F's box holds a good share of them): F would be seen through H's face, as above, but
 // its columns need not be enclosed above and below (a blob reaching the face's bottom or top edge, or where

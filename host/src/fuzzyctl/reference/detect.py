@@ -823,7 +823,7 @@ def drop_seen_through(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
 
 
 def drop_inside_nearer(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
-    """Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 13): an obstacle F is dropped
+    """Inside a nearer face (docs/detection.md "(e) Inside a nearer face", session 14): an obstacle F is dropped
     when one obstacle H with more pixels and disparity > F's * (1 + merge_max_rel_disparity) has a box holding
     >= inside_drop_min_share of F's box area and the band of inside_drop_ring_px pixels around F's box (clipped
     to the image) holds >= inside_drop_min_ring of H's pixels; the rest are renumbered (ids, ol)."""
@@ -857,7 +857,7 @@ def drop_inside_nearer(obstacles: list, ol: np.ndarray, p: DetectParams) -> list
 
 
 def extend_over_gap(obstacles: list, ol: np.ndarray, a: float, b: float, horizon: int, h: int, p: DetectParams) -> None:
-    """Ground contact over a gap (docs/detection.md "(e) Box extent", session 13): a box whose bottom lies above
+    """Ground contact over a gap (docs/detection.md "(e) Box extent", session 14): a box whose bottom lies above
     its foot row (the last row from its bottom on whose road line a*v + b is still below the obstacle's disparity;
     rows above the horizon have no line value) ends at the foot row when at most foot_gap_max_occluded of the gap
     (the box's columns, the rows below it to the foot) carries the label of an obstacle nearer by more than
