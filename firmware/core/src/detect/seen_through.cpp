@@ -15,6 +15,26 @@
 
 namespace fs::detect {
 
+namespace {
+// Removes the obstacles with drop[i] set; the rest keep their order and get ids 0.. again, and the
+// label image (1-based obstacle labels, 0 = none) is renumbered to match.
+void drop_obstacles(std::vector<Obstacle>& obstacles, ImageI32& labels, const std::vector<bool>& drop) {
+  const std::size_t n = obstacles.size();
+  std::vector<std::int32_t> remap(n + 1, 0);
+  std::vector<Obstacle> kept;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (drop[i]) continue;
+    kept.push_back(obstacles[i]);
+    kept.back().id = int(kept.size()) - 1;
+    remap[i + 1] = std::int32_t(kept.size());
+  }
+  if (kept.size() == n) return;
+  for (std::int32_t& l : labels.data)
+    if (l > 0 && std::size_t(l) < remap.size()) l = remap[std::size_t(l)];
+  obstacles = std::move(kept);
+}
+}  // namespace
+
 void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p) {
   if (p.seen_through_drop_share <= 0 || obstacles.size() < 2) return;
   const int w = labels.width, h = labels.height;
@@ -46,18 +66,7 @@ void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const
       drop[f] = double(enclosed) >= p.seen_through_drop_share * double(F.pixel_count);
     }
   }
-  std::vector<std::int32_t> remap(n + 1, 0);
-  std::vector<Obstacle> kept;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (drop[i]) continue;
-    kept.push_back(obstacles[i]);
-    kept.back().id = int(kept.size()) - 1;
-    remap[i + 1] = std::int32_t(kept.size());
-  }
-  if (kept.size() == n) return;
-  for (std::int32_t& l : labels.data)
-    if (l > 0 && std::size_t(l) < remap.size()) l = remap[std::size_t(l)];
-  obstacles = std::move(kept);
+  drop_obstacles(obstacles, labels, drop);
 }
 
 // Inside a nearer face (session 14, docs/detection.md "(e) Inside a nearer face"): the box of a farther
@@ -101,18 +110,7 @@ void drop_inside_nearer(std::vector<Obstacle>& obstacles, ImageI32& labels, cons
       drop[f] = band > 0 && double(of_h) >= p.inside_drop_min_ring * double(band);
     }
   }
-  std::vector<std::int32_t> remap(n + 1, 0);
-  std::vector<Obstacle> kept;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (drop[i]) continue;
-    kept.push_back(obstacles[i]);
-    kept.back().id = int(kept.size()) - 1;
-    remap[i + 1] = std::int32_t(kept.size());
-  }
-  if (kept.size() == n) return;
-  for (std::int32_t& l : labels.data)
-    if (l > 0 && std::size_t(l) < remap.size()) l = remap[std::size_t(l)];
-  obstacles = std::move(kept);
+  drop_obstacles(obstacles, labels, drop);
 }
 
 }  // namespace fs::detect
