@@ -239,7 +239,8 @@ Scene parse_scene(const std::string& toml_text, const std::string& source) {
   Scene s;
   s.source = source;
   Reader top(&root, "", source);
-  s.seed = static_cast<std::uint64_t>(top.integer("seed", 0, {0.0, 9.2e18}));
+  // Every non-negative TOML integer (int64): the generator's scene seeds use all 63 bits.
+  s.seed = static_cast<std::uint64_t>(top.integer("seed", 0, {0.0, 9223372036854775807.0}));
   s.type = top.str("type", s.type);
   if (s.type.empty() || s.type.size() > 64) top.fail("type = \"" + s.type + "\" is not valid: 1 to 64 characters");
 

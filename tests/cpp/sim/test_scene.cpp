@@ -4,6 +4,7 @@
 #include <string>
 
 #include "config.hpp"
+#include "fuzzystereo/sim/generator.hpp"
 #include "fuzzystereo/sim/scene.hpp"
 
 namespace {
@@ -129,6 +130,17 @@ TEST(SimScene, TomlRoundTripIsExact) {
   EXPECT_EQ(back.obstacles[0].x_m, s.obstacles[0].x_m);
   EXPECT_EQ(back.obstacles.size(), s.obstacles.size());
   EXPECT_EQ(back.radiometric.right.gamma, 1.2);
+}
+
+// Generated scenes use 63-bit seeds; every one of them must load again from its scene file (seed 123,
+// scene 56 has 9206339968386896057, which the old range [0, 9.2e18] rejected).
+TEST(SimScene, GeneratedSeedsUseTheWholeRangeAndLoad) {
+  const auto s = fs::sim::generate_scene(123, 56, fs::sim::GeneratorOptions{});
+  EXPECT_GT(s.seed, 9200000000000000000ULL);
+  const auto back = parse_scene(fs::sim::scene_to_toml(s), "000056.toml");
+  EXPECT_EQ(back.seed, s.seed);
+  EXPECT_EQ(parse_scene("seed = 9223372036854775807\n", "max.toml").seed, 9223372036854775807ULL);
+  EXPECT_NE(error_of("seed = -1\n").find("seed"), std::string::npos);
 }
 
 }  // namespace
