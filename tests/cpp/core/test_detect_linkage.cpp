@@ -116,15 +116,36 @@ Obstacle box_obstacle(int id, int x0, int y0, int x1, int y1, int q4, ImageI32& 
   return o;
 }
 
+// The scene of the two drop tests: H (id 0), a face at Q4 320 over rows 10..49, columns 10..49; F (id 1),
+// a blob at Q4 240 (25 % farther) in a hole of H over rows fy0..fy1, columns 20..35; G (id 2) at 240
+// beside H (columns 60..79, rows 15..45). Sorted by id; `labels` receive id + 1.
+std::vector<Obstacle> face_blob_beside(int fy0, int fy1, ImageI32& labels) {
+  std::vector<Obstacle> o;
+  o.push_back(box_obstacle(1, 20, fy0, 35, fy1, 240, labels));  // F first so that H's rectangle leaves its hole
+  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
+  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
+  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  return o;
+}
+
+// After a drop in that scene: F is gone (its pixel in row f_row, column 25, unlabelled), H and G stay,
+// G renumbered to id 1 in the list and label 2 in the image.
+void expect_only_f_dropped(const std::vector<Obstacle>& kept, const ImageI32& labels, int f_row) {
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(kept[0].disparity_q4, 320);
+  EXPECT_EQ(kept[1].disparity_q4, 240);
+  EXPECT_EQ(kept[1].x0, 60);
+  EXPECT_EQ(kept[1].id, 1);
+  EXPECT_EQ(labels.at(25, f_row), 0);
+  EXPECT_EQ(labels.at(70, 30), 2);
+  EXPECT_EQ(labels.at(12, 12), 1);
+}
+
 TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
   // H: a face at Q4 320, rows 10..49, columns 10..49, with a hole (rows 20..29, columns 20..35) where the
   // matcher measured a blob F at Q4 240 (25 % farther). G at 240 beside H (columns 60..79): not enclosed.
   ImageI32 labels(100, 60, 0);
-  std::vector<Obstacle> o;
-  o.push_back(box_obstacle(1, 20, 20, 35, 29, 240, labels));  // F first so that H's rectangle leaves its hole
-  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
-  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
-  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  const std::vector<Obstacle> o = face_blob_beside(20, 29, labels);
   // ids: 0 = H, 1 = F, 2 = G; labels hold id + 1.
   DetectParams p;
   p.seen_through_drop_share = 0.0;
@@ -136,14 +157,7 @@ TEST(DetectSeenThrough, FartherBlobInsideANearerFaceIsDropped) {
   auto on = o;
   ImageI32 l1 = labels;
   detect::drop_seen_through(on, l1, p);
-  ASSERT_EQ(on.size(), 2u);
-  EXPECT_EQ(on[0].disparity_q4, 320);
-  EXPECT_EQ(on[1].disparity_q4, 240);
-  EXPECT_EQ(on[1].x0, 60);  // G kept, renumbered id 1
-  EXPECT_EQ(on[1].id, 1);
-  EXPECT_EQ(l1.at(25, 25), 0);   // F's pixels left the labels
-  EXPECT_EQ(l1.at(70, 30), 2);   // G's pixels renumbered
-  EXPECT_EQ(l1.at(12, 12), 1);
+  expect_only_f_dropped(on, l1, 25);
   // Within fragment merging's tolerance (F at 300 vs 320: 6.7 % < 10 %) F is not "farther": kept.
   auto near = o;
   near[1].disparity_q4 = 300;
@@ -165,11 +179,7 @@ TEST(DetectInsideNearer, FartherBlobInANearerBoxIsDropped) {
   // (id 1) at Q4 240 (25 % farther): rows 35..49, columns 20..35 — reaching H's bottom edge, so H has no
   // pixels below F and the seen-through rule keeps it. G (id 2) at 240 beside H (columns 60..79).
   ImageI32 labels(100, 60, 0);
-  std::vector<Obstacle> o;
-  o.push_back(box_obstacle(1, 20, 35, 35, 49, 240, labels));  // F first so that H's rectangle leaves its hole
-  o.push_back(box_obstacle(0, 10, 10, 49, 49, 320, labels));
-  o.push_back(box_obstacle(2, 60, 15, 79, 45, 240, labels));
-  std::sort(o.begin(), o.end(), [](const Obstacle& a, const Obstacle& b) { return a.id < b.id; });
+  const std::vector<Obstacle> o = face_blob_beside(35, 49, labels);
   DetectParams p;
   p.inside_drop_min_share = 0.85;
   p.inside_drop_min_ring = 0.25;
@@ -182,13 +192,7 @@ TEST(DetectInsideNearer, FartherBlobInANearerBoxIsDropped) {
   auto on = o;
   ImageI32 l1 = labels;
   detect::drop_inside_nearer(on, l1, p);
-  ASSERT_EQ(on.size(), 2u);
-  EXPECT_EQ(on[0].disparity_q4, 320);
-  EXPECT_EQ(on[1].x0, 60);  // G kept, renumbered id 1
-  EXPECT_EQ(on[1].id, 1);
-  EXPECT_EQ(l1.at(25, 40), 0);  // F's pixels left the labels
-  EXPECT_EQ(l1.at(70, 30), 2);  // G's pixels renumbered
-  EXPECT_EQ(l1.at(12, 12), 1);
+  expect_only_f_dropped(on, l1, 40);
   // Off (share 0): kept.
   auto off = o;
   ImageI32 l2 = labels;
