@@ -1,9 +1,9 @@
 // fuzzystereo run        — the robot: capture -> match -> detect -> track -> plan -> motors.
 // fuzzystereo sim suite  — N seeded closed-loop scenarios in the simulator, faster than real time.
-#include <cstdlib>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <fstream>
 #include <mutex>

@@ -48,6 +48,22 @@ void assign_window(const ImageU8& img, std::uint32_t* __restrict dist, ImageI32&
   }
 }
 
+// The per-segment fields of a Segmentation from its runs in row-major order and each run's label
+// (0 .. count-1): pixel counts, and the runs grouped by segment (a stable counting sort, so each
+// segment's runs stay row-major).
+void group_runs(Segmentation& seg, int count, const std::vector<Run>& runs, const std::vector<std::int32_t>& label) {
+  seg.count = count;
+  seg.pixels.assign(std::size_t(count), 0);
+  seg.run_begin.assign(std::size_t(count) + 1, 0);
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    seg.pixels[std::size_t(label[i])] += runs[i].x1 - runs[i].x0;
+    ++seg.run_begin[std::size_t(label[i]) + 1];
+  }
+  for (int s = 0; s < count; ++s) seg.run_begin[std::size_t(s) + 1] += seg.run_begin[std::size_t(s)];
+  seg.runs.resize(runs.size());
+  std::vector<std::int32_t> fill(seg.run_begin.begin(), seg.run_begin.end() - 1);
+  for (std::size_t i = 0; i < runs.size(); ++i) seg.runs[std::size_t(fill[std::size_t(label[i])]++)] = runs[i];
+}
 }  // namespace
 
 Segmentation segmentation_from_labels(ImageI32 labels) {
@@ -55,25 +71,17 @@ Segmentation segmentation_from_labels(ImageI32 labels) {
   const int w = labels.width, h = labels.height;
   std::int32_t maxl = -1;
   for (auto v : labels.data) maxl = std::max(maxl, v);
-  seg.count = maxl + 1;
-  seg.pixels.assign(std::size_t(seg.count), 0);
-  std::vector<std::int32_t> nruns(std::size_t(seg.count), 0);
+  std::vector<Run> runs;
+  std::vector<std::int32_t> label;
   std::vector<std::uint8_t> flags(std::size_t(w) + 8);
   for (int y = 0; y < h; ++y) {
     const std::int32_t* l = labels.row(y);
     detail::for_each_run(l, w, flags.data(), [&](int x, int e) {
-      seg.pixels[std::size_t(l[x])] += e - x;
-      ++nruns[std::size_t(l[x])];
+      runs.push_back(Run{y, x, e});
+      label.push_back(l[x]);
     });
   }
-  seg.run_begin.assign(std::size_t(seg.count) + 1, 0);
-  for (int s = 0; s < seg.count; ++s) seg.run_begin[std::size_t(s) + 1] = seg.run_begin[std::size_t(s)] + nruns[std::size_t(s)];
-  seg.runs.resize(std::size_t(seg.run_begin.back()));
-  std::vector<std::int32_t> fill(seg.run_begin.begin(), seg.run_begin.end() - 1);
-  for (int y = 0; y < h; ++y) {
-    const std::int32_t* l = labels.row(y);
-    detail::for_each_run(l, w, flags.data(), [&](int x, int e) { seg.runs[std::size_t(fill[std::size_t(l[x])]++)] = Run{y, x, e}; });
-  }
+  group_runs(seg, maxl + 1, runs, label);
   seg.labels = std::move(labels);
   return seg;
 }
@@ -230,17 +238,7 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
       }
     }
   }
-  seg.count = next;
-  seg.pixels.assign(std::size_t(next), 0);
-  seg.run_begin.assign(std::size_t(next) + 1, 0);
-  for (std::size_t i = 0; i < out_runs.size(); ++i) {
-    seg.pixels[std::size_t(out_label[i])] += out_runs[i].x1 - out_runs[i].x0;
-    ++seg.run_begin[std::size_t(out_label[i]) + 1];
-  }
-  for (int s = 0; s < next; ++s) seg.run_begin[std::size_t(s) + 1] += seg.run_begin[std::size_t(s)];
-  seg.runs.resize(out_runs.size());
-  std::vector<std::int32_t> fill(seg.run_begin.begin(), seg.run_begin.end() - 1);
-  for (std::size_t i = 0; i < out_runs.size(); ++i) seg.runs[std::size_t(fill[std::size_t(out_label[i])]++)] = out_runs[i];
+  group_runs(seg, next, out_runs, out_label);
   return seg;
 }
 
