@@ -370,6 +370,7 @@ LoopResult RobotLoop::run() {
   robot::MultiTracker tracker(I.tp);
   robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks, look_before_turn_m)
   const robot::Planner planner(I.pp, I.rp);
+  std::vector<Vec2> last_route;  // the last frame's global path: route commitment ([planner] route_keep_ratio)
   robot::DiffDriveMixer mixer(I.rp);
   robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
 
@@ -687,7 +688,8 @@ LoopResult RobotLoop::run() {
       const double lat_s = sim_clock ? robot::ns_to_s(latency_ns) : wall_ms_since(w0) * 1e-3;
       plan_pose = robot::predict_to_command_time(pose, mixer.last(), lat_s, obstacles);
     }
-    const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles);
+    const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles, &last_route);
+    last_route = plan.path;
     const bool ahead = robot::obstacle_in_front(plan_pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;
     if (plan.status == robot::PlanStatus::kReached) want = {};
@@ -882,6 +884,7 @@ LoopResult RobotLoop::run() {
       fj["plan_path"] = std::move(pj);
       fj["carrot"] = {std::round(plan.carrot.x * 100) / 100, std::round(plan.carrot.y * 100) / 100};
       fj["reduced_margin"] = plan.reduced_margin;
+      fj["route_kept"] = plan.route_kept;
     }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)

@@ -63,6 +63,9 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.escape_inside_margin = v.flag("planner.escape_inside_margin");
   p.transient_not_blocking = v.flag("planner.transient_not_blocking");
   p.ignore_goal_footprint = v.flag("planner.ignore_goal_footprint");
+  p.route_keep_ratio = v.num("planner.route_keep_ratio");
+  p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
+  p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
   return p;
 }
 

@@ -132,13 +132,15 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
   Pose2D prev = sc.start;
   PlanStatus status = PlanStatus::kMoving;
   double blocked_still_s = 0;
+  std::vector<Vec2> last_route;  // route commitment ([planner] route_keep_ratio)
   for (;;) {
     const double t = ns_to_s(clock.now_ns());
     const Pose2D pose = motors.pose();
     std::vector<CircleObstacle> now;
     for (const auto& o : sc.obstacles) now.push_back({o.at(t), o.r, o.vel});
     const BodyTwist cur = twist_from_wheels(motors.wheel_left_mps(), motors.wheel_right_mps(), rp.wheel_base_m);
-    const PlanOutput plan = planner.plan(pose, cur, sc.goal, now);
+    const PlanOutput plan = planner.plan(pose, cur, sc.goal, now, &last_route);
+    last_route = plan.path;
     status = plan.status;
     if (status == PlanStatus::kReached) {
       res.reached = true;

@@ -110,6 +110,42 @@ Vec2 pick_carrot(const GlobalPlan& gp, Vec2 pos, double lookahead) {
   return best;
 }
 
+double path_length(const std::vector<Vec2>& path) {
+  double len = 0;
+  for (std::size_t i = 1; i < path.size(); ++i) len += norm(path[i] - path[i - 1]);
+  return len;
+}
+
+double point_segment_distance(Vec2 p, Vec2 a, Vec2 b) {
+  const Vec2 ab = b - a;
+  const double l2 = norm2(ab);
+  const double t = l2 > 0 ? std::clamp(dot(p - a, ab) / l2, 0.0, 1.0) : 0.0;
+  return norm(p - (a + t * ab));
+}
+
+// Route commitment ([planner] route_keep_*): the last frame's route, from the robot's nearest point
+// on it, when it still ends at the goal, passes within route_keep_offset_m of the robot and is free
+// on this frame's grid (the one the new route was found on, same obstacles and inflation).
+bool last_route_from(const std::vector<Vec2>& last, Vec2 pos, Vec2 goal, const GlobalPlan& gp,
+                     const PlannerParams& pp, std::vector<Vec2>& kept) {
+  if (last.size() < 2 || norm(last.back() - goal) > 1e-9) return false;
+  double best = kInf;
+  std::size_t seg = 0;
+  for (std::size_t i = 0; i + 1 < last.size(); ++i) {
+    const double d = point_segment_distance(pos, last[i], last[i + 1]);
+    if (d < best) {
+      best = d;
+      seg = i;
+    }
+  }
+  if (best > pp.route_keep_offset_m) return false;
+  kept.assign(1, pos);
+  kept.insert(kept.end(), last.begin() + static_cast<std::ptrdiff_t>(seg) + 1, last.end());
+  for (std::size_t i = 1; i < kept.size(); ++i)
+    if (!gp.grid.segment_free(kept[i - 1], kept[i])) return false;
+  return true;
+}
+
 struct ArcEval {
   double t_collide = kInf;  // first time the hard margin is violated
   double min_gap = kInf;    // smallest surface gap before that [m]
@@ -232,7 +268,7 @@ double worst_gap(const Pose2D& pose, double v, double w, const std::vector<Circl
 }  // namespace
 
 PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
-                         const std::vector<CircleObstacle>& obstacles) const {
+                         const std::vector<CircleObstacle>& obstacles, const std::vector<Vec2>* last_route) const {
   PlanOutput out;
   const Vec2 pos = pose.pos();
   const double dist_goal = norm(goal - pos);
@@ -247,6 +283,19 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   if (gp.path.empty()) {
     out.status = PlanStatus::kBlocked;  // safe stop: the mixer ramps v, omega down to 0
     return out;
+  }
+  // Route commitment: A* on a grid rebuilt every frame may switch between two routes of about the
+  // same length (round either side of an obstacle, through a gap or round the wall's end) as depth
+  // noise and ghost circles come and go; the robot then turns back and forth and times out (suite
+  // seed 11, scenario 5: 40 s within 1.3 m of the start). Keep the last route while it is free and
+  // not much longer than the new one. Not while only static obstacles leave a path (waiting).
+  if (pp_.route_keep_ratio > 0 && last_route != nullptr && !gp.only_static) {
+    std::vector<Vec2> kept;
+    if (last_route_from(*last_route, pos, goal, gp, pp_, kept) &&
+        path_length(kept) <= pp_.route_keep_ratio * path_length(gp.path) + pp_.route_keep_extra_m) {
+      gp.path = std::move(kept);
+      out.route_kept = true;
+    }
   }
   out.path = gp.path;
   out.reduced_margin = gp.reduced_margin;

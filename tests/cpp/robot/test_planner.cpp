@@ -317,6 +317,46 @@ TEST(Planner, ObstaclesOnTheGoalPointDoNotBlockTheSearch) {
   EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, ring).status, PlanStatus::kBlocked);
 }
 
+// Route commitment: an obstacle a little above the straight line makes the route below it the
+// shorter; the last frame's route above it is kept while it is free, not much longer and near the
+// robot, and dropped when an obstacle closes it or the robot is far from it.
+TEST(Planner, KeepsTheLastRouteWhileItIsFreeAndNotMuchLonger) {
+  const Vec2 goal{4.0, 0.0};
+  std::vector<CircleObstacle> obs{{{2.0, 0.05}, 0.4, {}}};
+  const std::vector<Vec2> above{{-0.1, 0.0}, {1.0, 0.75}, {2.0, 0.85}, {3.0, 0.75}, goal};
+  auto y_at_2 = [](const PlanOutput& p) {  // the route's side of the obstacle
+    double best = 1e9, y = 0;
+    for (const Vec2& q : p.path)
+      if (std::abs(q.x - 2.0) < best) best = std::abs(q.x - 2.0), y = q.y;
+    return y;
+  };
+  PlannerParams pp = planner();
+  const PlanOutput fresh = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &above);
+  EXPECT_FALSE(fresh.route_kept);  // off by default
+  EXPECT_LT(y_at_2(fresh), -0.3);  // A* alone goes below
+  pp.route_keep_ratio = 1.3;
+  pp.route_keep_extra_m = 0.5;
+  const PlanOutput kept = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &above);
+  EXPECT_TRUE(kept.route_kept);
+  EXPECT_GT(y_at_2(kept), 0.3);
+  EXPECT_EQ(kept.path.front().x, 0.0);  // from the robot on
+  EXPECT_EQ(kept.path.back().x, goal.x);
+  EXPECT_GT(kept.cmd.omega, 0.0);  // turning left, towards the kept route
+  // closed by a new obstacle on it: the new route
+  std::vector<CircleObstacle> closed = obs;
+  closed.push_back({{2.0, 0.9}, 0.1, {}});
+  const PlanOutput reroute = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, closed, &above);
+  EXPECT_FALSE(reroute.route_kept);
+  EXPECT_LT(y_at_2(reroute), -0.3);
+  // the robot far from the last route
+  EXPECT_FALSE(Planner(pp, robot()).plan({0, -0.6, 0}, {}, goal, obs, &above).route_kept);
+  // much longer than the new one
+  pp.route_keep_ratio = 1.0;
+  pp.route_keep_extra_m = 0.0;
+  const std::vector<Vec2> detour{{0.0, 0.0}, {0.0, 2.0}, {4.0, 2.0}, goal};
+  EXPECT_FALSE(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &detour).route_kept);
+}
+
 TEST(NavSuite, ReachesGoalsWithoutCollisionAndStopsWhenBlocked) {
 #ifdef FS_TEST_EMULATED
   const int n_free = 30, n_blocked = 10;  // under qemu (10-30x slower): a subset of the same seeds

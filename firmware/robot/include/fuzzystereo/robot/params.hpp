@@ -70,6 +70,11 @@ struct PlannerParams {
                                        // are left out of the "blocked" (no path) decision
   bool ignore_goal_footprint = false;  // obstacles whose inflated disc covers the goal are left out
                                        // of the global search (the local planner still avoids them)
+  double route_keep_ratio = 0.0;     // route commitment: the last frame's global path is kept while it
+                                     // is free and at most this times the new one's length (+ extra);
+                                     // 0 = off (a new A* route every frame; docs/robot.md)
+  double route_keep_extra_m = 0.0;   // ... plus this much [m]
+  double route_keep_offset_m = 0.3;  // the robot must be within this of the kept path [m]
 };
 
 // [watchdog]

@@ -6,8 +6,9 @@
 //      horizon_s against every obstacle's PREDICTED position c + t * vel; admissible only when
 //      collision-free and the robot can still brake to a stop before the first contact; scored by
 //      heading to a carrot on the global path, progress, clearance and speed.
-// Runs every frame (no state but the last path for display). No global path -> status kBlocked and
-// a braking command; no admissible arc -> kWaiting and a braking command. docs/robot.md "Planner".
+// Runs every frame; no state (the caller may pass the last frame's path back: route commitment).
+// No global path -> status kBlocked and a braking command; no admissible arc -> kWaiting and a
+// braking command. docs/robot.md "Planner".
 #pragma once
 #include <string>
 #include <vector>
@@ -33,6 +34,7 @@ struct PlanOutput {
   Vec2 carrot;                   // lookahead point the local planner steered to
   bool reduced_margin = false;   // the path needed the bare collision margin (a tight gap)
   double clearance_m = 0;        // smallest predicted surface gap along the chosen arc [m]
+  bool route_kept = false;       // the global path is the last frame's route (route commitment)
   bool evading = false;          // every arc was unsafe and a moving obstacle would hit the standing
                                  // robot: cmd is the arc whose first contact comes latest
 };
@@ -42,8 +44,10 @@ class Planner {
   Planner(const PlannerParams& pp, const RobotParams& rp) : pp_(pp), rp_(rp) {}
   // pose: current pose; current: current body twist (for the dynamic window); obstacles at the
   // current time with velocities (planning uses c + t * vel for t in [0, horizon]).
+  // last_route: the previous frame's PlanOutput::path (world), for route commitment
+  // ([planner] route_keep_ratio > 0); nullptr = none.
   PlanOutput plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
-                  const std::vector<CircleObstacle>& obstacles) const;
+                  const std::vector<CircleObstacle>& obstacles, const std::vector<Vec2>* last_route = nullptr) const;
 
   const PlannerParams& params() const { return pp_; }
   const RobotParams& robot() const { return rp_; }
