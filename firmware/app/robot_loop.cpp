@@ -92,7 +92,7 @@ struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
-      meas_sigma_floor_m;
+      meas_sigma_floor_m, seen_max_age_s;
   int moving_min_hits, static_track_cells, look_min_hits;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -126,6 +126,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
   p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
   p.silhouette_centres = v.flag("loop.silhouette_centres");
+  p.seen_max_age_s = v.num("loop.seen_max_age_s");
   return p;
 }
 
@@ -688,7 +689,18 @@ LoopResult RobotLoop::run() {
       const double lat_s = sim_clock ? robot::ns_to_s(latency_ns) : wall_ms_since(w0) * 1e-3;
       plan_pose = robot::predict_to_command_time(pose, mixer.last(), lat_s, obstacles);
     }
-    const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles, &last_route);
+    // Ground the camera saw free (or a surface on) within [loop] seen_max_age_s: [planner] unseen_check_s.
+    const std::int64_t seen_after_ns = t_frame - t0 - static_cast<std::int64_t>(lp.seen_max_age_s * 1e9);
+    robot::PlanContext ctx{&last_route, {}};
+    // Inside this frame's view counts as seen: where the camera looks now but measured nothing (no
+    // texture, too near) the map and the front stop decide; the rule is about turning into the sides.
+    if (I.pp.unseen_check_s > 0)
+      ctx.recently_seen = [&](Vec2 p) {
+        const Vec2 d = p - pose.pos();
+        if (std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov) return true;
+        return world_map.last_seen_ns(p) >= seen_after_ns;
+      };
+    const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles, ctx);
     last_route = plan.path;
     const bool ahead = robot::obstacle_in_front(plan_pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;

@@ -66,6 +66,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_ratio = v.num("planner.route_keep_ratio");
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
+  p.unseen_check_s = v.num("planner.unseen_check_s");
   return p;
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "fuzzystereo/robot/obstacle_map.hpp"
 #include "fuzzystereo/robot/static_support.hpp"
@@ -245,6 +246,32 @@ TEST(ObstacleMap, HitsOutsideTheGridAreIgnored) {
   map.integrate(s);
   EXPECT_EQ(map.occupied_count(), 1);
   EXPECT_EQ(map.obstacles({0, 0}, 100.0).size(), 1u);  // query window clamped to the grid
+}
+
+
+// What the camera saw and when ([planner] unseen_check_s): cells in the view up to the column's free
+// range, also nearer than min_range_m, and surface cells; not behind the robot, not beyond the free
+// range, not outside the view; a later scan that sees the cell again moves its time on.
+TEST(ObstacleMap, RemembersWhenTheCameraLastSawTheGround) {
+  constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min();
+  ObstacleMap map;
+  EXPECT_EQ(map.last_seen_ns({1.0, 0.0}), kNever);  // before the first scan
+  CameraScan s = scan_at({0, 0, 0}, 2.0);  // +-38.7 deg view, free to 2 m
+  s.hits = {{3.0, 0.0}};
+  s.t_ns = 100;
+  map.integrate(s);
+  EXPECT_EQ(map.last_seen_ns({1.0, 0.0}), 100);
+  EXPECT_EQ(map.last_seen_ns({0.2, 0.0}), 100);   // nearer than min_range_m (0.3 m)
+  EXPECT_EQ(map.last_seen_ns({3.0, 0.0}), 100);   // the surface point
+  EXPECT_EQ(map.last_seen_ns({2.5, 0.0}), kNever);  // between the free range and the surface
+  EXPECT_EQ(map.last_seen_ns({-1.0, 0.0}), kNever);  // behind
+  EXPECT_EQ(map.last_seen_ns({1.0, 1.5}), kNever);   // outside the view (56 deg)
+  EXPECT_EQ(map.last_seen_ns({1e3, 0.0}), kNever);   // off the grid
+  s = scan_at({0, 0, M_PI / 2}, 2.0);  // turned left
+  s.t_ns = 200;
+  map.integrate(s);
+  EXPECT_EQ(map.last_seen_ns({0.0, 1.0}), 200);
+  EXPECT_EQ(map.last_seen_ns({1.0, 0.0}), 100);  // not in this view: the older time stays
 }
 
 }  // namespace

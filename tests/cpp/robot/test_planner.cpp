@@ -331,12 +331,12 @@ TEST(Planner, KeepsTheLastRouteWhileItIsFreeAndNotMuchLonger) {
     return y;
   };
   PlannerParams pp = planner();
-  const PlanOutput fresh = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &above);
+  const PlanOutput fresh = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, {&above, {}});
   EXPECT_FALSE(fresh.route_kept);  // off by default
   EXPECT_LT(y_at_2(fresh), -0.3);  // A* alone goes below
   pp.route_keep_ratio = 1.3;
   pp.route_keep_extra_m = 0.5;
-  const PlanOutput kept = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &above);
+  const PlanOutput kept = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, {&above, {}});
   EXPECT_TRUE(kept.route_kept);
   EXPECT_GT(y_at_2(kept), 0.3);
   EXPECT_EQ(kept.path.front().x, 0.0);  // from the robot on
@@ -345,16 +345,48 @@ TEST(Planner, KeepsTheLastRouteWhileItIsFreeAndNotMuchLonger) {
   // closed by a new obstacle on it: the new route
   std::vector<CircleObstacle> closed = obs;
   closed.push_back({{2.0, 0.9}, 0.1, {}});
-  const PlanOutput reroute = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, closed, &above);
+  const PlanOutput reroute = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, closed, {&above, {}});
   EXPECT_FALSE(reroute.route_kept);
   EXPECT_LT(y_at_2(reroute), -0.3);
   // the robot far from the last route
-  EXPECT_FALSE(Planner(pp, robot()).plan({0, -0.6, 0}, {}, goal, obs, &above).route_kept);
+  EXPECT_FALSE(Planner(pp, robot()).plan({0, -0.6, 0}, {}, goal, obs, {&above, {}}).route_kept);
   // much longer than the new one
   pp.route_keep_ratio = 1.0;
   pp.route_keep_extra_m = 0.0;
   const std::vector<Vec2> detour{{0.0, 0.0}, {0.0, 2.0}, {4.0, 2.0}, goal};
-  EXPECT_FALSE(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, &detour).route_kept);
+  EXPECT_FALSE(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, {&detour, {}}).route_kept);
+}
+
+// Look where you drive: with the goal to the left and nothing seen, no forward arc is admissible
+// and the robot turns on the spot towards it; with everything seen (or the check off) it drives.
+TEST(Planner, DoesNotDriveOntoGroundNotSeenRecently) {
+  const Vec2 goal{0.0, 3.0};
+  PlannerParams pp = planner();
+  pp.unseen_check_s = 1.0;
+  PlanContext nothing;
+  nothing.recently_seen = [](Vec2) { return false; };
+  const PlanOutput turn = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, {}, nothing);
+  EXPECT_EQ(turn.status, PlanStatus::kMoving);
+  EXPECT_EQ(turn.cmd.v, 0.0);
+  EXPECT_GT(turn.cmd.omega, 0.0);
+  PlanContext everything;
+  everything.recently_seen = [](Vec2) { return true; };
+  EXPECT_GT(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, {}, everything).cmd.v, 0.0);
+  // only a 30 deg wedge ahead seen: every forward arc keeps its leading point inside it
+  PlanContext wedge;
+  wedge.recently_seen = [](Vec2 p) { return p.x > 0 && std::abs(std::atan2(p.y, p.x)) < M_PI / 12; };
+  const Pose2D start{0, 0, 0};
+  const BodyTwist moving{0.3, 0.0};
+  const PlanOutput w = Planner(pp, robot()).plan(start, moving, goal, {}, wedge);
+  if (w.cmd.v > 0.02) {
+    const double lead = robot().radius_m + pp.safety_margin_m;
+    for (double t = pp.sim_step_s; t <= pp.unseen_check_s + 1e-9; t += pp.sim_step_s) {
+      const Pose2D p = integrate_pose(start, w.cmd, t);
+      EXPECT_TRUE(wedge.recently_seen({p.x + lead * std::cos(p.yaw), p.y + lead * std::sin(p.yaw)})) << t;
+    }
+  }
+  pp.unseen_check_s = 0.0;  // off: the same context changes nothing
+  EXPECT_GT(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, {}, nothing).cmd.v, 0.0);
 }
 
 TEST(NavSuite, ReachesGoalsWithoutCollisionAndStopsWhenBlocked) {

@@ -53,6 +53,10 @@ class ObstacleMap {
   // occupied when it arrives, a static obstacle's were there before (docs/robot.md, "Static
   // support of a track").
   int occupied_before(Vec2 c, double r, std::int64_t t_ns) const;
+  // Capture time of the last scan that saw the ground point p: inside the camera's view and nearer
+  // than its column's free range (also nearer than min_range_m: a column with a free range has
+  // nothing nearer), or a surface point in its cell. INT64_MIN when never seen or off the grid.
+  std::int64_t last_seen_ns(Vec2 p) const;
   // Capture time of the first scan integrated (the map knows nothing older); 0 before any scan.
   std::int64_t first_scan_ns() const { return first_scan_ns_; }
   const ObstacleMapParams& params() const { return p_; }
@@ -70,6 +74,7 @@ class ObstacleMap {
   std::vector<std::uint32_t> nhit_;
   std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
   std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
+  std::vector<std::int64_t> seen_ns_;   // capture time of the last scan that saw the cell
   std::uint32_t frame_ = 0;
   std::int64_t first_scan_ns_ = 0;
 };

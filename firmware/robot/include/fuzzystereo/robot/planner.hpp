@@ -10,6 +10,7 @@
 // No global path -> status kBlocked and a braking command; no admissible arc -> kWaiting and a
 // braking command. docs/robot.md "Planner".
 #pragma once
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -39,15 +40,23 @@ struct PlanOutput {
                                  // robot: cmd is the arc whose first contact comes latest
 };
 
+// What the caller remembers between frames, all optional.
+struct PlanContext {
+  // The previous frame's PlanOutput::path (world), for route commitment ([planner] route_keep_ratio
+  // > 0); nullptr = none.
+  const std::vector<Vec2>* last_route = nullptr;
+  // Whether the camera saw the ground point recently (the loop: ObstacleMap::last_seen_ns within
+  // [loop] seen_max_age_s), for "look where you drive" ([planner] unseen_check_s > 0); empty = no check.
+  std::function<bool(Vec2)> recently_seen;
+};
+
 class Planner {
  public:
   Planner(const PlannerParams& pp, const RobotParams& rp) : pp_(pp), rp_(rp) {}
   // pose: current pose; current: current body twist (for the dynamic window); obstacles at the
   // current time with velocities (planning uses c + t * vel for t in [0, horizon]).
-  // last_route: the previous frame's PlanOutput::path (world), for route commitment
-  // ([planner] route_keep_ratio > 0); nullptr = none.
   PlanOutput plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
-                  const std::vector<CircleObstacle>& obstacles, const std::vector<Vec2>* last_route = nullptr) const;
+                  const std::vector<CircleObstacle>& obstacles, const PlanContext& ctx = {}) const;
 
   const PlannerParams& params() const { return pp_; }
   const RobotParams& robot() const { return rp_; }
