@@ -437,7 +437,9 @@ LoopResult RobotLoop::run() {
   std::map<std::string, std::vector<double>> stage_ms;
   Pose2D true_pose = start, last_true = start;
   int blocked_run = 0;
-  robot::ObstacleMap world_map;
+  robot::ObstacleMapParams map_params;
+  map_params.remember_seen = I.pp.unseen_check_s > 0;  // [planner] unseen_check_s asks the map
+  robot::ObstacleMap world_map(map_params);
   // Static support of a track (see the planning step below; robot::has_static_support).
   const robot::StaticSupportParams ssp{lp.static_track_cells, lp.static_track_lag_s, lp.static_track_dwell_s,
                                        lp.static_track_born_s, lp.static_track_born_max_travel_m};
@@ -701,7 +703,7 @@ LoopResult RobotLoop::run() {
         return world_map.last_seen_ns(p) >= seen_after_ns;
       };
     const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles, ctx);
-    last_route = plan.path;
+    if (I.pp.route_keep_ratio > 0) last_route = plan.path;
     const bool ahead = robot::obstacle_in_front(plan_pose, obstacles, I.rp.radius_m, I.rp.stop_distance_m);
     BodyTwist want = plan.cmd;
     if (plan.status == robot::PlanStatus::kReached) want = {};

@@ -32,7 +32,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     nhit_.assign(nn, 0);
     stamp_.assign(nn, 0);
     since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
-    seen_ns_.assign(nn, std::numeric_limits<std::int64_t>::min());
+    if (p_.remember_seen) seen_ns_.assign(nn, std::numeric_limits<std::int64_t>::min());
     first_scan_ns_ = scan.t_ns;
     init_ = true;
   }
@@ -47,7 +47,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     sx_[i] += static_cast<float>((h.x - sx_[i]) / k);
     sy_[i] += static_cast<float>((h.y - sy_[i]) / k);
     nhit_[i] = k;
-    seen_ns_[i] = scan.t_ns;
+    if (p_.remember_seen) seen_ns_[i] = scan.t_ns;
     if (stamp_[i] == frame_) continue;
     stamp_[i] = frame_;
     const bool was_occupied = logodds_[i] > static_cast<float>(p_.l_occupied);
@@ -61,17 +61,21 @@ void ObstacleMap::integrate(const CameraScan& scan) {
   for (double r : scan.free_range_m) rmax = std::max(rmax, r);
   if (rmax <= scan.min_range_m) return;
   const double c = std::cos(scan.pose.yaw), s = std::sin(scan.pose.yaw);
+  // Without remember_seen, cells at the log-odds floor and nearer than min_range_m cannot change:
+  // skipped before the view test.
+  const bool seen = p_.remember_seen;
+  const double near = seen ? p_.cell_m : scan.min_range_m;
   int x0, y0, x1, y1;
   cell_window(scan.pose.pos(), rmax, x0, y0, x1, y1);
   for (int iy = y0; iy <= y1; ++iy)
     for (int ix = x0; ix <= x1; ++ix) {
       const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
-      if (stamp_[i] == frame_) continue;
+      if (stamp_[i] == frame_ || (!seen && logodds_[i] <= static_cast<float>(p_.l_min))) continue;
       // cell centre in the robot frame
       const double wx = origin_.x + (ix + 0.5) * p_.cell_m - scan.pose.x;
       const double wy = origin_.y + (iy + 0.5) * p_.cell_m - scan.pose.y;
       const double fwd = c * wx + s * wy, left = -s * wx + c * wy;
-      if (fwd < p_.cell_m || fwd > rmax) continue;
+      if (fwd < near || fwd > rmax) continue;
       // the whole cell must lie inside the column's free range: test its near and far columns
       const double half = 0.5 * p_.cell_m;
       const double u = scan.cx - scan.focal_px * left / fwd;
@@ -81,7 +85,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
       bool free = true;
       for (int uu = u0; uu <= u1 && free; ++uu) free = fwd + half < scan.free_range_m[uu];
       if (!free) continue;
-      seen_ns_[i] = scan.t_ns;
+      if (seen) seen_ns_[i] = scan.t_ns;
       // nearer than min_range_m the camera measures nothing: seen (the column's free range says
       // nothing nearer stands there), but no evidence for the occupancy
       if (fwd < scan.min_range_m || logodds_[i] <= static_cast<float>(p_.l_min)) continue;
@@ -91,7 +95,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
 
 std::int64_t ObstacleMap::last_seen_ns(Vec2 p) const {
   int ix, iy;
-  if (!init_ || !cell_of(p, ix, iy)) return std::numeric_limits<std::int64_t>::min();
+  if (!init_ || !p_.remember_seen || !cell_of(p, ix, iy)) return std::numeric_limits<std::int64_t>::min();
   return seen_ns_[static_cast<std::size_t>(iy) * n_ + ix];
 }
 

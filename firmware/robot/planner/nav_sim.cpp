@@ -140,7 +140,7 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
     for (const auto& o : sc.obstacles) now.push_back({o.at(t), o.r, o.vel});
     const BodyTwist cur = twist_from_wheels(motors.wheel_left_mps(), motors.wheel_right_mps(), rp.wheel_base_m);
     const PlanOutput plan = planner.plan(pose, cur, sc.goal, now, {&last_route, {}});
-    last_route = plan.path;
+    if (pp.route_keep_ratio > 0) last_route = plan.path;
     status = plan.status;
     if (status == PlanStatus::kReached) {
       res.reached = true;

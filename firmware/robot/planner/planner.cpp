@@ -452,12 +452,8 @@ double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 s
   };
   if (!free_pt(start) || !free_pt(goal)) return kInf;
   auto los = [&](Vec2 a, Vec2 b) {  // exact segment-to-circle distance
-    const Vec2 ab = b - a;
-    const double l2 = dot(ab, ab);
-    for (const CircleObstacle& o : obstacles) {
-      const double t = l2 > 0 ? std::clamp(dot(o.c - a, ab) / l2, 0.0, 1.0) : 0.0;
-      if (norm(a + t * ab - o.c) < o.r + radius) return false;
-    }
+    for (const CircleObstacle& o : obstacles)
+      if (point_segment_distance(o.c, a, b) < o.r + radius) return false;
     return true;
   };
   double margin = 1.0;

@@ -254,7 +254,9 @@ TEST(ObstacleMap, HitsOutsideTheGridAreIgnored) {
 // range, not outside the view; a later scan that sees the cell again moves its time on.
 TEST(ObstacleMap, RemembersWhenTheCameraLastSawTheGround) {
   constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min();
-  ObstacleMap map;
+  ObstacleMapParams mp;
+  mp.remember_seen = true;
+  ObstacleMap map(mp);
   EXPECT_EQ(map.last_seen_ns({1.0, 0.0}), kNever);  // before the first scan
   CameraScan s = scan_at({0, 0, 0}, 2.0);  // +-38.7 deg view, free to 2 m
   s.hits = {{3.0, 0.0}};

@@ -24,6 +24,8 @@ struct ObstacleMapParams {
   double miss = 0.4;         // log-odds removed for a frame that sees through the cell
   double l_min = -2.0, l_max = 3.5;  // clamp (bounds how long a cell takes to change its mind)
   double l_occupied = 0.4;   // occupied when the log-odds exceed this
+  bool remember_seen = false;  // keep last_seen_ns per cell (costs a view test of every cell in
+                               // range each scan; the loop sets it for [planner] unseen_check_s)
 };
 
 // One camera frame as rays: for each image column the ground distance up to which the camera saw
@@ -55,7 +57,8 @@ class ObstacleMap {
   int occupied_before(Vec2 c, double r, std::int64_t t_ns) const;
   // Capture time of the last scan that saw the ground point p: inside the camera's view and nearer
   // than its column's free range (also nearer than min_range_m: a column with a free range has
-  // nothing nearer), or a surface point in its cell. INT64_MIN when never seen or off the grid.
+  // nothing nearer), or a surface point in its cell. INT64_MIN when never seen, off the grid or
+  // without ObstacleMapParams::remember_seen.
   std::int64_t last_seen_ns(Vec2 p) const;
   // Capture time of the first scan integrated (the map knows nothing older); 0 before any scan.
   std::int64_t first_scan_ns() const { return first_scan_ns_; }
