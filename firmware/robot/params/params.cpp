@@ -61,6 +61,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.uncertainty_max_m = v.num("planner.uncertainty_max_m");
   p.latency_compensation = v.flag("planner.latency_compensation");
   p.escape_inside_margin = v.flag("planner.escape_inside_margin");
+  p.evade_when_blocked = v.flag("planner.evade_when_blocked");
   p.transient_not_blocking = v.flag("planner.transient_not_blocking");
   p.ignore_goal_footprint = v.flag("planner.ignore_goal_footprint");
   p.route_keep_ratio = v.num("planner.route_keep_ratio");

@@ -283,6 +283,49 @@ double worst_gap(const Pose2D& pose, double v, double w, const std::vector<Circl
 
 }  // namespace
 
+// Only obstacles the robot can reach within the horizon matter for the arcs.
+std::vector<CircleObstacle> Planner::reachable_obstacles(const std::vector<CircleObstacle>& obstacles, Vec2 pos) const {
+  const double reach = rp_.max_speed_mps * pp_.horizon_s + rp_.radius_m + pp_.safety_margin_m;
+  std::vector<CircleObstacle> near;
+  for (const CircleObstacle& o : obstacles)
+    if (norm(o.c - pos) - o.r - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
+  return near;
+}
+
+// The (v, omega) samples reachable within one control period from the current twist.
+Planner::DynamicWindow Planner::dynamic_window(const BodyTwist& current, double dist_goal) const {
+  const double T = pp_.control_period_s;
+  DynamicWindow dw;
+  dw.vmax = std::min(rp_.max_speed_mps, current.v + rp_.max_accel_mps2 * T);
+  // slow down towards the goal so the robot can stop inside the tolerance
+  dw.vmax = std::min(dw.vmax, std::sqrt(2.0 * rp_.max_accel_mps2 * std::max(0.0, dist_goal - 0.5 * rp_.goal_tolerance_m)));
+  dw.vmin = std::max(0.0, current.v - rp_.max_accel_mps2 * T);
+  dw.wmax = std::min(rp_.max_yaw_rate_radps, current.omega + rp_.max_yaw_accel_radps2 * T);
+  dw.wmin = std::max(-rp_.max_yaw_rate_radps, current.omega - rp_.max_yaw_accel_radps2 * T);
+  dw.nv = std::max(2, pp_.v_samples);
+  dw.nw = std::max(3, pp_.w_samples);
+  return dw;
+}
+
+BodyTwist Planner::DynamicWindow::at(int iv, int iw) const {
+  const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
+  return {v, wmin + (wmax - wmin) * iw / (nw - 1)};
+}
+
+// Evade rather than brake: something moving comes within the collision margin of the standing
+// robot (a static obstacle never reaches a robot that stands; the obstacles are grown by their
+// uncertainty, so the robot may already be "inside" one) and gets nearer than it is now, and the
+// best escape arc keeps a larger worst-case gap over the horizon than standing.
+bool Planner::evade_instead_of_standing(const Pose2D& pose, const std::vector<CircleObstacle>& near,
+                                        double escape_gap) const {
+  double now_moving = kInf;
+  for (const CircleObstacle& o : near)
+    if (o.vel.x != 0.0 || o.vel.y != 0.0) now_moving = std::min(now_moving, norm(o.c - pose.pos()) - o.r - rp_.radius_m);
+  const double stand_moving = worst_gap(pose, 0.0, 0.0, near, pp_, rp_, true);
+  const double stand_gap = worst_gap(pose, 0.0, 0.0, near, pp_, rp_);
+  return stand_moving < pp_.collision_margin_m && stand_moving < now_moving - 0.02 && escape_gap > stand_gap + 0.03;
+}
+
 PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
                          const std::vector<CircleObstacle>& obstacles, const PlanContext& ctx) const {
   PlanOutput out;
@@ -298,6 +341,29 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   GlobalPlan gp = global_plan(obstacles, pos, goal, pp_, rp_);
   if (gp.path.empty()) {
     out.status = PlanStatus::kBlocked;  // safe stop: the mixer ramps v, omega down to 0
+    // No route, but a mover coming at the standing robot is still dodged (evade_when_blocked):
+    // seed-12 suite scenario 37, a tracked 0.18 m/s mover walked into the robot from behind while
+    // it stood "blocked" (no route through the mover's predicted disc) turning on the spot.
+    if (pp_.evade_when_blocked) {
+      const std::vector<CircleObstacle> near = reachable_obstacles(obstacles, pos);
+      const DynamicWindow dw = dynamic_window(current, dist_goal);
+      double escape_gap = -kInf;
+      BodyTwist escape{};
+      for (int iv = 0; iv < dw.nv; ++iv)
+        for (int iw = 0; iw < dw.nw; ++iw) {
+          const BodyTwist tw = dw.at(iv, iw);
+          const double g = worst_gap(pose, tw.v, tw.omega, near, pp_, rp_);
+          if (g > escape_gap) {
+            escape_gap = g;
+            escape = tw;
+          }
+        }
+      if (evade_instead_of_standing(pose, near, escape_gap)) {
+        out.status = PlanStatus::kMoving;
+        out.evading = true;
+        out.cmd = escape;
+      }
+    }
     return out;
   }
   // Route commitment: A* on a grid rebuilt every frame may switch between two routes of about the
@@ -317,24 +383,11 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   out.reduced_margin = gp.reduced_margin;
   out.carrot = pick_carrot(gp, pos, pp_.lookahead_m);
 
-  // Only obstacles the robot can reach within the horizon matter for the arcs.
-  const double reach = rp_.max_speed_mps * pp_.horizon_s + rp_.radius_m + pp_.safety_margin_m;
-  std::vector<CircleObstacle> near;
-  for (const CircleObstacle& o : obstacles)
-    if (norm(o.c - pos) - o.r - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
-
+  const std::vector<CircleObstacle> near = reachable_obstacles(obstacles, pos);
   const std::vector<double> hard2 = contact_d2(pose, near, pp_, rp_);
 
   // 2. dynamic window around the current twist.
-  const double T = pp_.control_period_s;
-  double vmax = std::min(rp_.max_speed_mps, current.v + rp_.max_accel_mps2 * T);
-  // slow down towards the goal so the robot can stop inside the tolerance
-  vmax = std::min(vmax, std::sqrt(2.0 * rp_.max_accel_mps2 * std::max(0.0, dist_goal - 0.5 * rp_.goal_tolerance_m)));
-  const double vmin = std::max(0.0, current.v - rp_.max_accel_mps2 * T);
-  const double wmax = std::min(rp_.max_yaw_rate_radps, current.omega + rp_.max_yaw_accel_radps2 * T);
-  const double wmin = std::max(-rp_.max_yaw_rate_radps, current.omega - rp_.max_yaw_accel_radps2 * T);
-
-  const int nv = std::max(2, pp_.v_samples), nw = std::max(3, pp_.w_samples);
+  const DynamicWindow dw = dynamic_window(current, dist_goal);
   double best_cost = kInf;
   BodyTwist best{};
   double best_gap = 0;
@@ -344,10 +397,9 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   const double carrot_dist0 = norm(out.carrot - pos);
   const bool check_seen = pp_.unseen_check_s > 0 && static_cast<bool>(ctx.recently_seen);
   const double lead = rp_.radius_m + pp_.safety_margin_m;
-  for (int iv = 0; iv < nv; ++iv) {
-    const double v = vmin > vmax ? vmin : vmin + (vmax - vmin) * iv / (nv - 1);
-    for (int iw = 0; iw < nw; ++iw) {
-      const double w = wmin + (wmax - wmin) * iw / (nw - 1);
+  for (int iv = 0; iv < dw.nv; ++iv) {
+    for (int iw = 0; iw < dw.nw; ++iw) {
+      const auto [v, w] = dw.at(iv, iw);
       if (check_seen && v > 0.02 && drives_into_unseen(pose, v, w, lead, pp_, ctx.recently_seen)) continue;
       const ArcEval a = eval_arc(pose, v, w, false, near, hard2, out.carrot, pp_, rp_);
       double collide_pen = 0;
@@ -388,12 +440,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
     // obstacles are grown by their uncertainty, so the robot may already be "inside" one): then
     // take the arc that keeps the largest worst-case gap over the horizon, if it beats standing
     // (every frame re-plans, and the dynamic window widens as the robot speeds up).
-    double now_moving = std::numeric_limits<double>::infinity();
-    for (const CircleObstacle& o : near)
-      if (o.vel.x != 0.0 || o.vel.y != 0.0) now_moving = std::min(now_moving, norm(o.c - pos) - o.r - rp_.radius_m);
-    const double stand_moving = worst_gap(pose, 0.0, 0.0, near, pp_, rp_, true);
-    const double stand_gap = worst_gap(pose, 0.0, 0.0, near, pp_, rp_);
-    if (stand_moving < pp_.collision_margin_m && stand_moving < now_moving - 0.02 && escape_gap > stand_gap + 0.03) {
+    if (evade_instead_of_standing(pose, near, escape_gap)) {
       out.status = PlanStatus::kMoving;
       out.evading = true;
       out.cmd = escape;

@@ -245,6 +245,32 @@ TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
   EXPECT_FALSE(calm.evading);
 }
 
+// No route to the goal (enclosed by a ring) and a cylinder crossing towards the standing robot:
+// with evade_when_blocked the planner dodges it as it does when every arc is unsafe (seed-12 suite,
+// scenario 37: a robot standing "blocked" was walked into); without, it brakes. Without the mover,
+// blocked means a stop either way.
+TEST(Planner, EvadesAMoverEvenWhenTheGoalIsBlocked) {
+  std::vector<CircleObstacle> obs;
+  for (int i = 0; i < 16; ++i) obs.push_back({{3 + std::cos(i * M_PI / 8), std::sin(i * M_PI / 8)}, 0.15, {}});
+  obs.push_back({{0.0, 0.6}, 0.2, {0.0, -0.5}});
+  PlannerParams pp = planner();
+  ASSERT_TRUE(pp.evade_when_blocked);
+  const PlanOutput out = Planner(pp, robot()).plan({0, 0, 0}, {}, {3, 0}, obs);
+  EXPECT_TRUE(out.evading);
+  EXPECT_EQ(out.status, PlanStatus::kMoving);
+  EXPECT_GT(out.cmd.v, 0.0);
+  pp.evade_when_blocked = false;
+  const PlanOutput brake = Planner(pp, robot()).plan({0, 0, 0}, {}, {3, 0}, obs);
+  EXPECT_EQ(brake.status, PlanStatus::kBlocked);
+  EXPECT_FALSE(brake.evading);
+  EXPECT_EQ(brake.cmd.v, 0.0);
+  pp.evade_when_blocked = true;
+  obs.back().vel = {0.0, 0.0};
+  const PlanOutput calm = Planner(pp, robot()).plan({0, 0, 0}, {}, {3, 0}, obs);
+  EXPECT_EQ(calm.status, PlanStatus::kBlocked);
+  EXPECT_FALSE(calm.evading);
+}
+
 // A robot already inside the hard collision margin of a static obstacle (1 cm surface gap against
 // a 2 cm margin: it came too close, or stands in a map cell a passing mover left) must be able to
 // drive away. Before escape_inside_margin every arc, standing included, was "in contact" from the

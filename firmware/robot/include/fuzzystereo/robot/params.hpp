@@ -66,6 +66,8 @@ struct PlannerParams {
                                      // time the command reaches the motors (docs/robot.md)
   bool escape_inside_margin = true;  // an obstacle already inside the hard margin at t = 0 blocks
                                      // only arcs that bring the robot closer to it (docs/robot.md)
+  bool evade_when_blocked = true;    // with no route to the goal, still dodge a mover coming at the
+                                     // standing robot (docs/robot.md, session 16)
   bool transient_not_blocking = false;  // transient circles (a tracked obstacle's possible places)
                                        // are left out of the "blocked" (no path) decision
   bool ignore_goal_footprint = false;  // obstacles whose inflated disc covers the goal are left out

@@ -62,6 +62,15 @@ class Planner {
   const RobotParams& robot() const { return rp_; }
 
  private:
+  struct DynamicWindow {
+    double vmin = 0, vmax = 0, wmin = 0, wmax = 0;
+    int nv = 2, nw = 3;
+    BodyTwist at(int iv, int iw) const;  // sample (iv, iw) of the nv x nw grid
+  };
+  std::vector<CircleObstacle> reachable_obstacles(const std::vector<CircleObstacle>& obstacles, Vec2 pos) const;
+  DynamicWindow dynamic_window(const BodyTwist& current, double dist_goal) const;
+  bool evade_instead_of_standing(const Pose2D& pose, const std::vector<CircleObstacle>& near, double escape_gap) const;
+
   PlannerParams pp_;
   RobotParams rp_;
 };
