@@ -1045,7 +1045,10 @@ sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const C
   m.goal_x_m = nav.goal.x;
   m.goal_y_m = nav.goal.y;
   const double straight = robot::norm(nav.goal - nav.start.pos());
-  m.time_limit_s = blocked ? 60.0 : 3.0 * straight / rp.max_speed_mps + 20.0;
+  // One mission limit for both kinds: the robot cannot know in advance that no path exists, and
+  // finding out means looking round the obstacles (seed 12, b4: the robot circled the ring round the
+  // goal and stopped at 65.4 s, after the fixed 60 s blocked limit used until session 16).
+  m.time_limit_s = 3.0 * straight / rp.max_speed_mps + 20.0;
   sc.mission = m;
   sc.sky.kind = static_cast<sim::SkyKind>(pick(3));
   sc.light.sun_azimuth_deg = uni(0, 360);
