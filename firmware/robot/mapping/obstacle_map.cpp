@@ -32,6 +32,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     nhit_.assign(nn, 0);
     stamp_.assign(nn, 0);
     since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
+    frames_hit_.assign(nn, 0);
     if (p_.remember_seen) seen_ns_.assign(nn, std::numeric_limits<std::int64_t>::min());
     first_scan_ns_ = scan.t_ns;
     init_ = true;
@@ -52,7 +53,11 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     stamp_[i] = frame_;
     const bool was_occupied = logodds_[i] > static_cast<float>(p_.l_occupied);
     logodds_[i] = std::min(static_cast<float>(p_.l_max), logodds_[i] + static_cast<float>(p_.hit));
-    if (!was_occupied && logodds_[i] > static_cast<float>(p_.l_occupied)) since_ns_[i] = scan.t_ns;
+    if (!was_occupied && logodds_[i] > static_cast<float>(p_.l_occupied)) {
+      since_ns_[i] = scan.t_ns;
+      frames_hit_[i] = 0;
+    }
+    if (frames_hit_[i] < 0xffff) ++frames_hit_[i];
   }
   // 2. free space along the rays: cells in the view, nearer than their column's free range
   const int w = static_cast<int>(scan.free_range_m.size());
@@ -115,7 +120,7 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m)
   return out;
 }
 
-int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns) const {
+int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns, int min_frames) const {
   if (!init_) return 0;
   int x0, y0, x1, y1;
   cell_window(c, r, x0, y0, x1, y1);
@@ -123,7 +128,7 @@ int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns) const {
   for (int iy = y0; iy <= y1; ++iy)
     for (int ix = x0; ix <= x1; ++ix) {
       const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
-      if (logodds_[i] <= static_cast<float>(p_.l_occupied) || since_ns_[i] > t_ns) continue;
+      if (logodds_[i] <= static_cast<float>(p_.l_occupied) || since_ns_[i] > t_ns || frames_hit_[i] < min_frames) continue;
       if (norm(Vec2{sx_[i], sy_[i]} - c) <= r) ++n;
     }
   return n;

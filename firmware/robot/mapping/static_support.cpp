@@ -2,6 +2,9 @@
 
 #include "fuzzystereo/robot/clock.hpp"
 
+#include <algorithm>
+#include <vector>
+
 namespace fs::robot {
 
 namespace {
@@ -23,6 +26,24 @@ bool has_static_support(const ObstacleMap& map, const Track& tr, const StaticSup
          norm(tr.last_meas_p - tr.first_meas_p) <= p.born_max_travel_m &&
          map.occupied_before(tr.first_meas_p, r, tr.first_meas_ns) >= p.cells &&
          map.occupied_before(tr.last_meas_p, r, tr.last_meas_ns) >= p.cells;
+}
+
+bool measurement_is_static(const ObstacleMap& map, const Vec2* hits, std::size_t n, std::int64_t before_ns, double share,
+                           int min_frames) {
+  if (n == 0) return false;
+  const double r = map.params().cell_m;
+  std::vector<char> old(n);
+  for (std::size_t k = 0; k < n; ++k) old[k] = map.occupied_before(hits[k], r, before_ns, min_frames) > 0;
+  const auto share_of = [&](std::size_t b, std::size_t e) {
+    std::size_t c = 0;
+    for (std::size_t k = b; k < e; ++k) c += static_cast<std::size_t>(old[k]);
+    return static_cast<double>(c) >= share * static_cast<double>(e - b);
+  };
+  // The whole surface, and each silhouette end (the first and last fifth of the points, which come
+  // in image-column order): a mover sliding along its own front surface keeps hitting the same
+  // cells there, but its leading edge reaches fresh ones.
+  const std::size_t edge = std::max<std::size_t>(1, n / 5);
+  return share_of(0, n) && share_of(0, edge) && share_of(n - edge, n);
 }
 
 }  // namespace fs::robot

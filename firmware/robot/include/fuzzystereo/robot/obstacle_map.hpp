@@ -54,7 +54,9 @@ class ObstacleMap {
   // Tells a static obstacle from a mover at the same place: a mover's surface cells become
   // occupied when it arrives, a static obstacle's were there before (docs/robot.md, "Static
   // support of a track").
-  int occupied_before(Vec2 c, double r, std::int64_t t_ns) const;
+  // min_frames > 0: only cells hit in at least that many frames since they became occupied (a static
+  // surface is hit every frame it is in view; a mover's passing surface only for a frame or two).
+  int occupied_before(Vec2 c, double r, std::int64_t t_ns, int min_frames = 0) const;
   // Capture time of the last scan that saw the ground point p: inside the camera's view and nearer
   // than its column's free range (also nearer than min_range_m: a column with a free range has
   // nothing nearer), or a surface point in its cell. INT64_MIN when never seen, off the grid or
@@ -77,6 +79,7 @@ class ObstacleMap {
   std::vector<std::uint32_t> nhit_;
   std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
   std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
+  std::vector<std::uint16_t> frames_hit_;  // frames with a hit since the cell became occupied
   std::vector<std::int64_t> seen_ns_;   // capture time of the last scan that saw the cell
   std::uint32_t frame_ = 0;
   std::int64_t first_scan_ns_ = 0;

@@ -3,6 +3,7 @@
 // arrives; a static obstacle's were there before. The robot loop uses it to keep static obstacles'
 // tracks (fragments of walls and large cylinders read as 0.1-1 m/s "movers") from acting as movers.
 #pragma once
+#include <cstddef>
 #include <cstdint>
 
 #include "fuzzystereo/robot/obstacle_map.hpp"
@@ -35,5 +36,14 @@ int static_support_cells(const ObstacleMap& map, const Track& tr, double lag_s);
 // obstacle's cells stay; a mover that leaves its birthplace in view is seen through there and
 // loses them (docs/robot.md, "Session 11").
 bool has_static_support(const ObstacleMap& map, const Track& tr, const StaticSupportParams& p);
+
+// A detection is static ([loop] static_meas_age_s, static_meas_share) when at least `share` of its
+// surface points `hits` (world frame, before this frame is integrated) lie within one map cell of a
+// cell occupied without a break since `before_ns`: the map already holds that surface, it goes to
+// the map only, not to the tracker. A mover's surface reaches fresh cells (faster than about one
+// cell per age). No points: not static.
+// min_frames: only cells hit in at least that many frames count (ObstacleMap::occupied_before).
+bool measurement_is_static(const ObstacleMap& map, const Vec2* hits, std::size_t n, std::int64_t before_ns, double share,
+                           int min_frames = 0);
 
 }  // namespace fs::robot
