@@ -94,6 +94,7 @@ struct LoopParams {
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, static_meas_min_frames;
   int moving_min_hits, static_track_cells, look_min_hits;
+  bool static_meas_drop;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
 };
@@ -129,6 +130,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.seen_max_age_s = v.num("loop.seen_max_age_s");
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
+  p.static_meas_drop = v.flag("loop.static_meas_drop");
   p.static_meas_min_frames = static_cast<double>(v.integer("loop.static_meas_min_frames"));
   return p;
 }
@@ -454,7 +456,9 @@ LoopResult RobotLoop::run() {
   const auto support_cells = [&](const robot::Track& tr) {
     return robot::static_support_cells(world_map, tr, lp.static_track_lag_s);
   };
-  const auto static_support = [&](const robot::Track& tr) { return robot::has_static_support(world_map, tr, ssp); };
+  const auto static_support = [&](const robot::Track& tr) {
+    return tr.last_meas_static || robot::has_static_support(world_map, tr, ssp);
+  };
   // Speed to grow a track's reachable set with (robot::reach_speed, [loop] reach_travel_rate).
   const auto reach_speed_of = [&](const robot::Track& tr, double filtered_speed) {
     return robot::reach_speed(filtered_speed, tr.first_meas_p, tr.last_meas_p,
@@ -587,7 +591,8 @@ LoopResult RobotLoop::run() {
                                           static_cast<int>(lp.static_meas_min_frames))) {
           ++res.static_meas;
           static_meas_p.push_back(meas[i].p);
-          continue;
+          if (lp.static_meas_drop) continue;
+          meas[i].static_cells = true;  // tracked, but its track counts as static (static_support)
         }
         meas[keep++] = meas[i];
       }

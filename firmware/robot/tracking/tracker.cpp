@@ -118,6 +118,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_p = m.p;
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
+    tr.last_meas_static = m.static_cells;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
   }
@@ -150,6 +151,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.first_meas_var = sigma * sigma;
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;
+    tr.last_meas_static = m.static_cells;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
     tracks_.push_back(tr);

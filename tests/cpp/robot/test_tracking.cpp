@@ -163,6 +163,25 @@ TEST(Tracker, ConfirmationAfterMHits) {
   EXPECT_EQ(mt.obstacles(false, 0, 0).size(), 1u);
 }
 
+// ObstacleMeasurement::static_cells reaches the track it is associated with (and a track it starts):
+// the loop's static_meas_drop = false mode reads Track::last_meas_static as static support.
+TEST(Tracker, LastMeasurementStaticFlagFollowsTheAssociatedMeasurement) {
+  MultiTracker mt(TrackerParams{});
+  const auto vis = [](Vec2) { return true; };
+  ObstacleMeasurement m{{2.0, 0.0}, 0.2, 0, 0};
+  m.static_cells = true;
+  mt.step(0, {m}, vis);
+  ASSERT_EQ(mt.tracks().size(), 1u);
+  EXPECT_TRUE(mt.tracks()[0].last_meas_static);
+  m.static_cells = false;
+  mt.step(s_to_ns(0.1), {m}, vis);
+  ASSERT_EQ(mt.tracks().size(), 1u);
+  EXPECT_FALSE(mt.tracks()[0].last_meas_static);
+  m.static_cells = true;
+  mt.step(s_to_ns(0.2), {m}, vis);
+  EXPECT_TRUE(mt.tracks()[0].last_meas_static);
+}
+
 TEST(Tracker, TentativeTrackDiesOnFirstVisibleMiss) {
   MultiTracker mt(TrackerParams{});
   auto vis = [](Vec2) { return true; };

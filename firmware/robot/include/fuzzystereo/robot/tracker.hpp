@@ -20,6 +20,7 @@ struct ObstacleMeasurement {
   double radius_m = 0.1;   // half the measured width [m]
   int distance_class = 0;  // detector's near/mid/far class (passed through)
   double sigma_m = 0;      // position std of this measurement [m]; 0 = TrackerParams::pos_sigma_m
+  bool static_cells = false;  // its surface lies on old, stable map cells (robot::measurement_is_static)
 };
 
 // Measurement model of a round obstacle seen by the camera (at the origin of the frame): the two
@@ -51,6 +52,7 @@ struct Track {
   double first_meas_var = 0;    // the first measurement's position variance [m^2]
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
+  bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
   bool updated_this_frame = false;
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
