@@ -92,8 +92,8 @@ struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
-      meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, static_meas_min_frames;
-  int moving_min_hits, static_track_cells, look_min_hits;
+      meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
+  int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -131,7 +131,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
   p.static_meas_drop = v.flag("loop.static_meas_drop");
-  p.static_meas_min_frames = static_cast<double>(v.integer("loop.static_meas_min_frames"));
+  p.static_meas_min_frames = static_cast<int>(v.integer("loop.static_meas_min_frames"));
   return p;
 }
 
@@ -574,13 +574,14 @@ LoopResult RobotLoop::run() {
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
     scan.t_ns = t_frame - t0;  // the tracker's time base
-    std::vector<Vec2> static_meas_p;  // this frame's detections kept from the tracker (record)
+    std::vector<Vec2> static_meas_p;  // this frame's detections found static (record)
     if (lp.static_meas_age_s > 0) {
       // Static measurements ([loop] static_meas_age_s): a detection whose surface points lie, for at
       // least static_meas_share of them, within one cell of map cells occupied without a break since
-      // static_meas_age_s before this frame is a static obstacle the map already holds; it goes to the
-      // map only, not to the tracker. Movers arrive at fresh cells (faster than about one cell per
-      // static_meas_age_s). Cause: static obstacles' fragments made 330 of 358 "moving" confirmed
+      // static_meas_age_s before this frame (both silhouette ends too) is a static obstacle the map
+      // already holds: it is still tracked, but its track counts as a static obstacle's (static_support
+      // above: no mover, no growth); with static_meas_drop it goes to the map only. Movers arrive at
+      // fresh cells (faster than about one cell per static_meas_age_s). Cause: static obstacles' fragments made 330 of 358 "moving" confirmed
       // tracks on the seed-11 timeouts (docs/robot.md "Static support of a track"); their circles
       // and reachable sets close gaps.
       const std::int64_t before = scan.t_ns - robot::s_to_ns(lp.static_meas_age_s);
@@ -588,7 +589,7 @@ LoopResult RobotLoop::run() {
       for (std::size_t i = 0; i < meas.size(); ++i) {
         const auto [b, e] = meas_hits[i];
         if (robot::measurement_is_static(world_map, scan.hits.data() + b, e - b, before, lp.static_meas_share,
-                                          static_cast<int>(lp.static_meas_min_frames))) {
+                                          lp.static_meas_min_frames)) {
           ++res.static_meas;
           static_meas_p.push_back(meas[i].p);
           if (lp.static_meas_drop) continue;

@@ -3,7 +3,6 @@
 #include "fuzzystereo/robot/clock.hpp"
 
 #include <algorithm>
-#include <vector>
 
 namespace fs::robot {
 
@@ -32,18 +31,20 @@ bool measurement_is_static(const ObstacleMap& map, const Vec2* hits, std::size_t
                            int min_frames) {
   if (n == 0) return false;
   const double r = map.params().cell_m;
-  std::vector<char> old(n);
-  for (std::size_t k = 0; k < n; ++k) old[k] = map.occupied_before(hits[k], r, before_ns, min_frames) > 0;
-  const auto share_of = [&](std::size_t b, std::size_t e) {
-    std::size_t c = 0;
-    for (std::size_t k = b; k < e; ++k) c += static_cast<std::size_t>(old[k]);
-    return static_cast<double>(c) >= share * static_cast<double>(e - b);
-  };
   // The whole surface, and each silhouette end (the first and last fifth of the points, which come
   // in image-column order): a mover sliding along its own front surface keeps hitting the same
-  // cells there, but its leading edge reaches fresh ones.
+  // cells there, but its leading edge reaches fresh ones. One pass, counted per part (the ends may
+  // overlap for n < 10).
   const std::size_t edge = std::max<std::size_t>(1, n / 5);
-  return share_of(0, n) && share_of(0, edge) && share_of(n - edge, n);
+  std::size_t all = 0, head = 0, tail = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (map.occupied_before(hits[k], r, before_ns, min_frames) == 0) continue;
+    ++all;
+    head += k < edge;
+    tail += k >= n - edge;
+  }
+  const auto enough = [&](std::size_t count, std::size_t of) { return static_cast<double>(count) >= share * static_cast<double>(of); };
+  return enough(all, n) && enough(head, edge) && enough(tail, edge);
 }
 
 }  // namespace fs::robot

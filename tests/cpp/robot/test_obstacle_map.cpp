@@ -150,8 +150,12 @@ TEST(StaticSupport, MeasurementOnOldCellsIsStatic) {
   for (int k = 0; k <= 12; ++k) {
     st.t_ns = (51 + k) * s / 10;
     const bool is_static = measurement_is_static(map, st.hits.data(), st.hits.size(), st.t_ns - s, 0.6);
-    if (k <= 3) EXPECT_FALSE(is_static) << k;
-    if (k >= 10) EXPECT_TRUE(is_static) << k;
+    if (k <= 3) {
+      EXPECT_FALSE(is_static) << k;
+    }
+    if (k >= 10) {
+      EXPECT_TRUE(is_static) << k;
+    }
     map.integrate(st);
   }
 }

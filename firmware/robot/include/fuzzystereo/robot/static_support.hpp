@@ -39,9 +39,10 @@ bool has_static_support(const ObstacleMap& map, const Track& tr, const StaticSup
 
 // A detection is static ([loop] static_meas_age_s, static_meas_share) when at least `share` of its
 // surface points `hits` (world frame, before this frame is integrated) lie within one map cell of a
-// cell occupied without a break since `before_ns`: the map already holds that surface, it goes to
-// the map only, not to the tracker. A mover's surface reaches fresh cells (faster than about one
-// cell per age). No points: not static.
+// cell occupied without a break since `before_ns`, and so do both silhouette ends (the first and
+// last fifth of the points): the map already holds that surface. The loop then makes its track a
+// static obstacle's, or with [loop] static_meas_drop keeps it from the tracker. A mover's surface
+// reaches fresh cells (faster than about one cell per age). No points: not static.
 // min_frames: only cells hit in at least that many frames count (ObstacleMap::occupied_before).
 bool measurement_is_static(const ObstacleMap& map, const Vec2* hits, std::size_t n, std::int64_t before_ns, double share,
                            int min_frames = 0);
