@@ -182,6 +182,85 @@ TEST(Tracker, LastMeasurementStaticFlagFollowsTheAssociatedMeasurement) {
   EXPECT_TRUE(mt.tracks()[0].last_meas_static);
 }
 
+// A mover at 0.2 m/s along +y, measured every 0.2 s; at the end two border-cut measurements whose
+// centres are biased 0.15 m towards +x (the image side). With border_cut_position_only the velocity
+// estimate stays near the truth; without, the bias reads as motion.
+TEST(Tracker, BorderCutMeasurementsFeedNoVelocity) {
+  auto run = [](bool flag) {
+    TrackerParams tp;
+    tp.border_cut_position_only = flag;
+    tp.border_cut_inflate = true;
+    MultiTracker mt(tp);
+    const auto vis = [](Vec2) { return true; };
+    int f = 0;
+    for (; f < 15; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.04 * f}, 0.25, 0, 0.03}}, vis);
+    for (int k = 1; k <= 2; ++k, ++f) {
+      ObstacleMeasurement m{{2.0 + 0.15 * k / 2, 0.04 * f}, 0.2, 0, 0.03};
+      m.border_cut = true;
+      mt.step(s_to_ns(0.2 * f), {m}, vis);
+    }
+    EXPECT_EQ(mt.tracks().size(), 1u);
+    return mt.tracks()[0].vel();
+  };
+  const Vec2 with = run(true), without = run(false);
+  EXPECT_LT(std::abs(with.x), 0.05) << with.x;
+  EXPECT_NEAR(with.y, 0.2, 0.05);
+  EXPECT_GT(std::abs(without.x), 0.15) << "the bias should read as motion without the flag";
+  // The next full measurement after a border-cut one gives no finite-difference velocity either: a
+  // static obstacle, one biased border-cut measurement, then an unbiased one (0.75 m/s back if
+  // differenced from the biased one).
+  auto after_cut = [](bool flag) {
+    TrackerParams tp;
+    tp.border_cut_position_only = flag;
+    tp.border_cut_inflate = true;
+    MultiTracker mt(tp);
+    const auto vis = [](Vec2) { return true; };
+    int f = 0;
+    for (; f < 10; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.0}, 0.2, 0, 0.03}}, vis);
+    ObstacleMeasurement cut{{2.15, 0.0}, 0.2, 0, 0.03};
+    cut.border_cut = true;
+    mt.step(s_to_ns(0.2 * f++), {cut}, vis);
+    EXPECT_TRUE(mt.tracks()[0].last_meas_border_cut);
+    const Vec2 v_cut = mt.tracks()[0].vel();
+    mt.step(s_to_ns(0.2 * f), {{{2.0, 0.0}, 0.2, 0, 0.03}}, vis);
+    EXPECT_FALSE(mt.tracks()[0].last_meas_border_cut);
+    return std::make_pair(v_cut, mt.tracks()[0].vel());
+  };
+  const auto [cut_with, next_with] = after_cut(true);
+  const auto [cut_without, next_without] = after_cut(false);
+  EXPECT_LT(std::abs(cut_with.x), 0.1);
+  EXPECT_LT(std::abs(next_with.x), 0.1);
+  EXPECT_GT(std::abs(cut_without.x), 0.3) << "the biased measurement differenced reads as motion";
+}
+
+// travel_reset_gap_s: a measurement after a longer gap restarts the track's travel; the first
+// measurement stays where it was (static support reads it).
+TEST(Tracker, TravelRestartsAfterAGap) {
+  for (const double gap_s : {0.0, 1.0}) {
+    TrackerParams tp;
+    tp.travel_reset_gap_s = gap_s;
+    MultiTracker mt(tp);
+    const auto vis = [](Vec2 p) { return p.x < 5; };
+    for (int f = 0; f < 5; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.0}, 0.2, 0, 0.03}}, vis);
+    // unseen for 2 s (out of view: coasting), then measured 0.4 m away
+    mt.step(s_to_ns(2.8), {{{2.0, 0.4}, 0.2, 0, 0.03}}, vis);
+    ASSERT_EQ(mt.tracks().size(), 1u);
+    const Track& tr = mt.tracks()[0];
+    EXPECT_NEAR(tr.first_meas_p.y, 0.0, 1e-12);
+    EXPECT_EQ(tr.first_meas_ns, 0);
+    if (gap_s > 0) {
+      EXPECT_NEAR(tr.travel_from_p.y, 0.4, 1e-12);
+      EXPECT_EQ(tr.travel_from_ns, s_to_ns(2.8));
+    } else {
+      EXPECT_NEAR(tr.travel_from_p.y, 0.0, 1e-12);
+      EXPECT_EQ(tr.travel_from_ns, 0);
+    }
+    // a short gap does not restart it
+    mt.step(s_to_ns(3.0), {{{2.0, 0.45}, 0.2, 0, 0.03}}, vis);
+    EXPECT_EQ(mt.tracks()[0].travel_from_ns, gap_s > 0 ? s_to_ns(2.8) : 0);
+  }
+}
+
 TEST(Tracker, TentativeTrackDiesOnFirstVisibleMiss) {
   MultiTracker mt(TrackerParams{});
   auto vis = [](Vec2) { return true; };
