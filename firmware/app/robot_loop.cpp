@@ -95,7 +95,6 @@ struct LoopParams {
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop;
-  std::string static_meas_near_circle;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
 };
@@ -132,7 +131,6 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
   p.static_meas_drop = v.flag("loop.static_meas_drop");
-  p.static_meas_near_circle = v.str("loop.static_meas_near_circle");
   p.static_meas_min_frames = static_cast<int>(v.integer("loop.static_meas_min_frames"));
   return p;
 }
@@ -177,7 +175,6 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
   // Columns without enough valid disparities (an obstacle too close to match, a textureless
   // surface) or with disparities at the top of the search range are not seen free.
   const int sat_q4 = (max_disparity_px - 2) * kDispScale;
-  int first_valid_col = -1;  // the matcher leaves the left image's first columns without disparity
   for (int x = 0; x < w; ++x) {
     int valid = 0, sat = 0;
     for (int y = 0; y < h; ++y) {
@@ -186,7 +183,6 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
       sat += d >= sat_q4;
     }
     if (valid < h * 2 / 5 || sat > h / 10) scan.free_range_m[static_cast<std::size_t>(x)] = 0.0;
-    if (first_valid_col < 0 && valid > h / 10) first_valid_col = x;
   }
   std::vector<std::int16_t> vals;
   for (const Obstacle& o : det.obstacles) {
@@ -222,7 +218,6 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
     robot::ObstacleMeasurement m;
     m.distance_class = static_cast<int>(o.cls);
     m.sigma_m = std::max(lp.meas_sigma_floor_m, depth_sigma(calib, g.depth));
-    m.border_cut = o.x0 <= std::max(0, first_valid_col) + 2 || o.x1 >= w - 3;
     if (lp.silhouette_centres) {
       // The silhouette rays through the box's outer pixel edges, the front at the box centre
       // (robot::circle_from_silhouette; the camera is at the robot's centre).
@@ -652,15 +647,15 @@ LoopResult RobotLoop::run() {
           // average speed of at least moving_speed_mps, in the direction of its velocity estimate.
           // (Before this test, suite seed 7: every sampled front stop came from such a static
           // "moving" track.)
-          const Vec2 travel = tr.last_meas_p - tr.travel_from_p;
+          const Vec2 travel = tr.last_meas_p - tr.first_meas_p;
           const double dist = robot::norm(travel);
-          const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.travel_from_ns);
+          const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
           if (dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return false;
           // moving_travel_sigmas: the travel must also exceed what the depth noise of its two end
           // measurements explains (sigma grows with Z^2: 0.25 m at 4 m for the suite's camera, so a
           // fixed 0.3 m lets a far static obstacle's noise "travel").
           if (lp.moving_travel_sigmas > 0 &&
-              dist < lp.moving_travel_sigmas * std::sqrt(tr.travel_from_var + tr.last_meas_var))
+              dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
             return false;
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
@@ -676,17 +671,9 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          // static_meas_near_circle: for a track whose last measurement lay on old static map cells,
-          // "track" = as any other, "measured" = at that measurement with its radius, "none" = no
-          // circle (the map holds that surface). Seed-13 suite, scenario 49: a wall post's circle,
-          // 0.32-0.39 m for a 0.15 m post (the track keeps the largest radius it measured) and
-          // 0.1-0.2 m off towards the gap, closed a 0.72 m gap.
-          const bool measured = tr.last_meas_static && lp.static_meas_near_circle == "measured";
-          const Vec2 nc = measured ? tr.last_meas_p : tr.pos();
-          const double nr = measured ? tr.last_meas_radius_m : tr.radius_m;
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m && (lp.static_meas_near_circle != "none" || !tr.last_meas_static)) {
-            obstacles.push_back({nc, nr, {}, true});  // transient: never "blocked"
+              dist > tr.radius_m + I.rp.radius_m) {
+            obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
             kinds.push_back('n');
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {

@@ -37,9 +37,6 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.max_misses = v.integer("tracker.max_misses");
   p.max_coast_s = v.num("tracker.max_coast_s");
   p.velocity_measurement = v.flag("tracker.velocity_measurement");
-  p.border_cut_position_only = v.flag("tracker.border_cut_position_only");
-  p.border_cut_inflate = v.flag("tracker.border_cut_inflate");
-  p.travel_reset_gap_s = v.num("tracker.travel_reset_gap_s");
   p.max_speed_mps = v.num("tracker.max_speed_mps");
   return p;
 }
@@ -70,7 +67,6 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_ratio = v.num("planner.route_keep_ratio");
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
-  p.shortcut_ratio = v.num("planner.shortcut_ratio");
   p.unseen_check_s = v.num("planner.unseen_check_s");
   return p;
 }

@@ -36,12 +36,6 @@ struct GlobalPlan {
   bool only_static = false;
 };
 
-double path_length(const std::vector<Vec2>& path) {
-  double len = 0;
-  for (std::size_t i = 1; i < path.size(); ++i) len += norm(path[i] - path[i - 1]);
-  return len;
-}
-
 bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, double inflate, Vec2 start, Vec2 goal,
                       double margin, double res, bool check_pockets, const PlannerParams& pp, GlobalPlan& out) {
   Vec2 lo{std::min(start.x, goal.x) - margin, std::min(start.y, goal.y) - margin};
@@ -94,23 +88,7 @@ GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 
     gp.reduced_margin = false;
     const double m = pp.grid_margin_m;
     // (the pocket test is skipped on the first try, which usually succeeds)
-    if (build_and_search(obs, only_static, full, start, goal, m, res, only_static, pp, gp)) {
-      // Shortcut ([planner] shortcut_ratio): a gap the safety margin closes against a long detour.
-      // Seed-13 suite, scenario 49: a 0.72 m gap in a post wall, narrowed by the posts' track
-      // circles, closed at the full margin in most frames; the full-margin route went round the
-      // 7 m wall (2.8x the straight distance) and the robot swung between the two for 60 s. Only
-      // tried when the route is longer than ratio x the straight distance (the bare-margin route
-      // cannot be shorter than that).
-      const double len = path_length(gp.path);
-      if (only_static || pp.shortcut_ratio <= 0 || len <= pp.shortcut_ratio * norm(goal - start)) return gp;
-      GlobalPlan alt;
-      alt.reduced_margin = true;
-      if ((build_and_search(obs, false, bare, start, goal, m, res, false, pp, alt) ||
-           build_and_search(obs, false, bare, start, goal, m, 0.5 * res, false, pp, alt)) &&
-          len > pp.shortcut_ratio * path_length(alt.path))
-        return alt;
-      return gp;
-    }
+    if (build_and_search(obs, only_static, full, start, goal, m, res, only_static, pp, gp)) return gp;
     gp.reduced_margin = true;
     if (build_and_search(obs, only_static, bare, start, goal, m, res, true, pp, gp)) return gp;
     if (build_and_search(obs, only_static, bare, start, goal, m, 0.5 * res, true, pp, gp)) return gp;
@@ -130,6 +108,12 @@ Vec2 pick_carrot(const GlobalPlan& gp, Vec2 pos, double lookahead) {
     if (gp.grid.segment_free(pos, path[i])) best = path[i];
   }
   return best;
+}
+
+double path_length(const std::vector<Vec2>& path) {
+  double len = 0;
+  for (std::size_t i = 1; i < path.size(); ++i) len += norm(path[i] - path[i - 1]);
+  return len;
 }
 
 double point_segment_distance(Vec2 p, Vec2 a, Vec2 b) {

@@ -89,23 +89,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
     const double var = sigma * sigma;
     const double dtm = ns_to_s(t_ns - tr.last_meas_ns);
-    if (p_.travel_reset_gap_s > 0 && dtm > p_.travel_reset_gap_s) {
-      // Re-acquired after a gap: what it did before (possibly another obstacle's measurements, seed-13
-      // suite scenario 16: a track that stood on a static post for 30 frames took a passing mover
-      // 0.8 m away after 2.8 s unseen) does not count as its travel.
-      tr.travel_from_ns = t_ns;
-      tr.travel_from_p = m.p;
-      tr.travel_from_var = var;
-    }
-    const bool cut = p_.border_cut_position_only && m.border_cut;
-    if (cut) {
-      // Only part of the obstacle was seen: its measured centre is biased towards the image (by up
-      // to its radius), and a finite difference from or to it reads that bias as motion (seed-13
-      // suite, scenario 46: a 0.15 m/s mover leaving the view read 0.47 m/s at 70 deg off its
-      // course, and the robot turned into where it really was).
-      tr.kf.update_position(m.p.x, m.p.y, p_.border_cut_inflate ? std::max(var, m.radius_m * m.radius_m) : var);
-    } else if (p_.velocity_measurement && tr.hits >= 1 && dtm > 1e-6 &&
-               !(p_.border_cut_position_only && tr.last_meas_border_cut)) {
+    if (p_.velocity_measurement && tr.hits >= 1 && dtm > 1e-6) {
       // z = [p; v], v = finite difference to this track's previous measurement. With independent
       // position noise var_k, var_{k-1}: Var(v) = (var_k + var_{k-1}) / dt^2, Cov(p, v) = var_k / dt.
       // R is that covariance (the paper's R is diagonal; the p-v cross term is kept because it is
@@ -135,7 +119,6 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
-    tr.last_meas_border_cut = m.border_cut;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
   }
@@ -166,13 +149,9 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.first_meas_ns = t_ns;
     tr.first_meas_p = m.p;
     tr.first_meas_var = sigma * sigma;
-    tr.travel_from_ns = t_ns;
-    tr.travel_from_p = m.p;
-    tr.travel_from_var = sigma * sigma;
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
-    tr.last_meas_border_cut = m.border_cut;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
     tracks_.push_back(tr);

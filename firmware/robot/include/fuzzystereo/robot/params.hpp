@@ -38,14 +38,6 @@ struct TrackerParams {
   int max_misses = 5;               // K: deleted after this many consecutive *visible* misses
   double max_coast_s = 10.0;        // deleted after this long without any measurement [s]
   bool velocity_measurement = true; // z = [p; v] with v the finite difference (eq. 31-32, H = I)
-  double travel_reset_gap_s = 0.0;  // a measurement after this long without one starts the track's
-                                    // travel anew (Track::travel_from_*: the "has it travelled" test
-                                    // of a mover); 0 = off, travel from the first measurement [s]
-  bool border_cut_position_only = false;  // a measurement of an obstacle cut by the image border
-                                    // (centre biased towards the image) updates the position only,
-                                    // with std >= its radius, and feeds no finite-difference velocity
-                                    // (neither does the next one); docs/robot.md "Session 17"
-  bool border_cut_inflate = false;  // ... and its position std is at least its radius
   double max_speed_mps = 0.0;       // speed gate: fastest obstacle expected; a measurement further
                                     // from the track's last one than this speed (+ noise) allows is
                                     // not its [m/s]; 0 = off (docs/robot.md "Session 8": 0.5 measured
@@ -85,10 +77,6 @@ struct PlannerParams {
                                      // 0 = off (a new A* route every frame; docs/robot.md)
   double route_keep_extra_m = 0.0;   // ... plus this much [m]
   double route_keep_offset_m = 0.3;  // the robot must be within this of the kept path [m]
-  double shortcut_ratio = 0.0;       // a route with the full safety margin longer than this times the
-                                     // route with the bare collision margin gives way to the latter
-                                     // (a gap the margin closes vs. a long detour); 0 = off, the
-                                     // bare margin only when no full-margin route exists (docs/robot.md)
   double unseen_check_s = 0.0;       // look where you drive: an arc with v > 0 whose leading point
                                      // (radius + safety margin ahead) enters ground the camera has not
                                      // seen recently within this time is not driven; 0 = off [s]

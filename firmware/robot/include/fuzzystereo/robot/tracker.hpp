@@ -21,7 +21,6 @@ struct ObstacleMeasurement {
   int distance_class = 0;  // detector's near/mid/far class (passed through)
   double sigma_m = 0;      // position std of this measurement [m]; 0 = TrackerParams::pos_sigma_m
   bool static_cells = false;  // its surface lies on old, stable map cells (robot::measurement_is_static)
-  bool border_cut = false;    // its box touches the image border: only part of the obstacle was seen
 };
 
 // Measurement model of a round obstacle seen by the camera (at the origin of the frame): the two
@@ -51,15 +50,9 @@ struct Track {
   std::int64_t first_meas_ns = 0;  // the measurement that started the track
   Vec2 first_meas_p;
   double first_meas_var = 0;    // the first measurement's position variance [m^2]
-  // Where the track's travel counts from: the first measurement, or the first after a gap longer
-  // than TrackerParams::travel_reset_gap_s (the loop's "has it travelled" test of a mover).
-  std::int64_t travel_from_ns = 0;
-  Vec2 travel_from_p;
-  double travel_from_var = 0;
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
-  bool last_meas_border_cut = false;  // its ObstacleMeasurement::border_cut
   bool updated_this_frame = false;
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
