@@ -583,6 +583,63 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
         console.print(f"wrote {json_out}")
 
 
+@app.command("suite-diff", short_help="Scenario-by-scenario comparison of closed-loop suite results.")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--time-change", type=click.FloatRange(0, None), default=None,
+              help="Also list scenarios reached in both runs whose time differs by more than this [s].")
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the comparison as JSON.")
+def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out: Path | None) -> None:
+    """Compare BASE.json NEW.json [BASE2.json NEW2.json ...] (`fuzzystereo sim suite --json`, same
+    seed and count per pair): totals, every scenario whose outcome changed, and the exact sign test of
+    the scenarios reached in only one of the two runs (a small p: more than a harmless change's
+    reshuffling; with 2-4 discordant scenarios p is never small)."""
+    import json as _json
+    import math as _math
+
+    from rich.table import Table
+
+    from .suitediff import diff, sign_test_p, to_json
+
+    if len(files) % 2:
+        raise FatalError(f"suite-diff takes pairs of files (BASE NEW ...); got {len(files)}")
+    pairs = [diff(files[i], files[i + 1], _math.inf if time_change is None else time_change)
+             for i in range(0, len(files), 2)]
+    t = Table(title="closed-loop suites, base -> new")
+    for col in ("seed", "reached", "collisions", "struck", "safe stops", "mean time to goal s", "gained", "lost", "sign p"):
+        t.add_column(col, justify="right")
+    def mt(v: float | None) -> str:
+        return "-" if v is None else f"{v:.1f}"
+    for p in pairs:
+        b, n = p.base, p.new
+        t.add_row(str(b.seed), f"{b.reached} -> {n.reached} / {b.solvable}", f"{b.collisions} -> {n.collisions}",
+                  f"{b.struck} -> {n.struck}", f"{b.safe_stops} -> {n.safe_stops} / {b.blocked}",
+                  f"{mt(b.mean_time_reached_s)} -> {mt(n.mean_time_reached_s)}", str(p.gained), str(p.lost),
+                  f"{sign_test_p(p.gained, p.lost):.2f}")
+    if len(pairs) > 1:
+        tot = to_json(pairs)["total"]
+        t.add_row("all", f"{tot['reached_base']} -> {tot['reached_new']} / {tot['solvable']}",
+                  f"{tot['collisions_base']} -> {tot['collisions_new']}", "",
+                  f"{tot['safe_stops_base']} -> {tot['safe_stops_new']} / {tot['blocked']}", "",
+                  str(tot["gained"]), str(tot["lost"]), f"{tot['sign_test_p']:.2f}")
+    console.print(t)
+    for p in pairs:
+        if not p.changed:
+            console.print(f"seed {p.base.seed}: no scenario changed")
+            continue
+        c = Table(title=f"seed {p.base.seed}: changed scenarios ({p.base.path} -> {p.new.path})")
+        for col in ("scenario", "features", "base", "new", "change"):
+            c.add_column(col)
+        style = {"better": "green", "worse": "red"}
+        for row in p.changed:
+            c.add_row(row["scenario"], row["features"], f"{row['base']} {row['base_time_s']:.1f} s",
+                      f"{row['new']} {row['new_time_s']:.1f} s",
+                      f"[{style.get(row['change'], '')}]{row['change']}[/]" if row["change"] in style else row["change"])
+        console.print(c)
+    if json_out is not None:
+        json_out.write_text(_json.dumps(to_json(pairs), indent=2) + "\n")
+        console.print(f"wrote {json_out}")
+
+
 # ---- main -----------------------------------------------------------------------------------
 
 
