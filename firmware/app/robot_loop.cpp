@@ -93,9 +93,8 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
-  int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames, static_meas_streak, mover_fit_min_n;
-  double mover_fit_max_rms_m, mover_fit_min_travel_m;
-  bool static_meas_drop, static_meas_near_circle;
+  int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
+  bool static_meas_drop;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
 };
@@ -132,11 +131,6 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
   p.static_meas_drop = v.flag("loop.static_meas_drop");
-  p.static_meas_streak = static_cast<int>(v.integer("loop.static_meas_streak"));
-  p.mover_fit_min_n = static_cast<int>(v.integer("loop.mover_fit_min_n"));
-  p.mover_fit_max_rms_m = v.num("loop.mover_fit_max_rms_m");
-  p.mover_fit_min_travel_m = v.num("loop.mover_fit_min_travel_m");
-  p.static_meas_near_circle = v.flag("loop.static_meas_near_circle");
   p.static_meas_min_frames = static_cast<int>(v.integer("loop.static_meas_min_frames"));
   return p;
 }
@@ -462,28 +456,8 @@ LoopResult RobotLoop::run() {
   const auto support_cells = [&](const robot::Track& tr) {
     return robot::static_support_cells(world_map, tr, lp.static_track_lag_s);
   };
-  // A static measurement ([loop] static_meas_age_s) counts once the track's last static_meas_streak
-  // measurements all were (a mover's measurement is found static now and then — seed 11, scenario 4:
-  // 6 of 63, in pairs — a static obstacle's in every frame).
-  const auto static_meas = [&](const robot::Track& tr) {
-    return tr.static_streak > 0 && tr.static_streak >= lp.static_meas_streak;
-  };
-  // A mover by its own measurements ([loop] mover_fit_*): its last measurements lie along a straight
-  // line (RMS off it <= mover_fit_max_rms_m) over which it travelled >= mover_fit_min_travel_m. Such a
-  // track is a mover whatever the map says: a slow mover (0.05-0.15 m/s) leaves a trail of occupied
-  // cells (the map clears a cell only when the camera sees through it) and its new surface lies on
-  // its own old cells, so the static tests above take it for a static obstacle (seed 11, scenario 4:
-  // a 0.13 m/s mover tracked for 30 frames with 43-80 cells of "static support"). A track chained
-  // from fragments of a wall jumps between them: a large residual.
-  const auto fit_mover = [&](const robot::Track& tr) {
-    if (lp.mover_fit_min_n <= 0 || tr.hist_n < lp.mover_fit_min_n) return false;
-    const robot::MotionFit f = robot::fit_motion(tr);
-    return f.rms_m <= lp.mover_fit_max_rms_m && robot::norm(f.v) * f.span_s >= lp.mover_fit_min_travel_m &&
-           robot::norm(f.v) >= lp.moving_speed_mps;
-  };
   const auto static_support = [&](const robot::Track& tr) {
-    if (fit_mover(tr)) return false;
-    return static_meas(tr) || robot::has_static_support(world_map, tr, ssp);
+    return tr.last_meas_static || robot::has_static_support(world_map, tr, ssp);
   };
   // Speed to grow a track's reachable set with (robot::reach_speed, [loop] reach_travel_rate).
   const auto reach_speed_of = [&](const robot::Track& tr, double filtered_speed) {
@@ -665,7 +639,6 @@ LoopResult RobotLoop::run() {
         if (supported && !lp.static_track_keep_circles) continue;
         const auto moving = [&] {
           if (supported) return false;
-          if (age_s <= lp.moving_max_age_s && fit_mover(tr)) return true;
           if (tr.hits < lp.moving_min_hits || robot::norm(o.vel) < lp.moving_speed_mps || age_s > lp.moving_max_age_s)
             return false;
           // Has it really travelled? A static obstacle's track jitters (fragments, depth noise) and
@@ -698,11 +671,8 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          // static_meas_near_circle = false: none for a track with static measurements (static_meas):
-          // the map's cells stand for it. (Seed-13 suite, scenario 49: a wall post's circle, 0.32-0.39 m
-          // for a 0.15 m post — a track keeps the largest radius it measured — closed a 0.72 m gap.)
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m && (lp.static_meas_near_circle || !static_meas(tr))) {
+              dist > tr.radius_m + I.rp.radius_m) {
             obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
             kinds.push_back('n');
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&

@@ -119,8 +119,6 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
-    tr.static_streak = m.static_cells ? tr.static_streak + 1 : 0;
-    tr.remember(m.p, t_ns);
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
   }
@@ -154,8 +152,6 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
-    tr.static_streak = m.static_cells ? 1 : 0;
-    tr.remember(m.p, t_ns);
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
     tracks_.push_back(tr);
@@ -184,40 +180,6 @@ void LostTracks::update(const std::vector<Track>& tracks, std::int64_t t_ns, dou
   prev_.clear();
   for (const Track& tr : tracks)
     if (tr.confirmed) prev_.push_back(tr);
-}
-
-MotionFit fit_motion(const Track& tr) {
-  MotionFit f;
-  f.n = tr.hist_n;
-  if (f.n < 2) return f;
-  const int first = tr.hist_n < Track::kHistory ? 0 : tr.hist_head;
-  const std::int64_t t0 = tr.hist_ns[static_cast<std::size_t>(first)];
-  double st = 0, sx = 0, sy = 0, stt = 0, stx = 0, sty = 0, tmax = 0;
-  for (int k = 0; k < f.n; ++k) {
-    const std::size_t i = static_cast<std::size_t>((first + k) % Track::kHistory);
-    const double t = ns_to_s(tr.hist_ns[i] - t0);
-    const Vec2 p = tr.hist_p[i];
-    st += t;
-    sx += p.x;
-    sy += p.y;
-    stt += t * t;
-    stx += t * p.x;
-    sty += t * p.y;
-    tmax = std::max(tmax, t);
-  }
-  const double n = f.n, den = n * stt - st * st;
-  f.span_s = tmax;
-  if (den <= 1e-12) return f;
-  f.v = {(n * stx - st * sx) / den, (n * sty - st * sy) / den};
-  const Vec2 p0{(sx - f.v.x * st) / n, (sy - f.v.y * st) / n};
-  double ss = 0;
-  for (int k = 0; k < f.n; ++k) {
-    const std::size_t i = static_cast<std::size_t>((first + k) % Track::kHistory);
-    const double t = ns_to_s(tr.hist_ns[i] - t0);
-    ss += norm2(tr.hist_p[i] - (p0 + t * f.v));
-  }
-  f.rms_m = std::sqrt(ss / n);
-  return f;
 }
 
 }  // namespace fs::robot

@@ -182,58 +182,6 @@ TEST(Tracker, LastMeasurementStaticFlagFollowsTheAssociatedMeasurement) {
   EXPECT_TRUE(mt.tracks()[0].last_meas_static);
 }
 
-// Track::static_streak counts the consecutive static measurements up to the last one.
-TEST(Tracker, StaticStreakCountsConsecutiveStaticMeasurements) {
-  MultiTracker mt(TrackerParams{});
-  const auto vis = [](Vec2) { return true; };
-  ObstacleMeasurement m{{2.0, 0.0}, 0.2, 0, 0};
-  const bool pattern[] = {true, true, false, true, true, true};
-  const int expect[] = {1, 2, 0, 1, 2, 3};
-  for (int f = 0; f < 6; ++f) {
-    m.static_cells = pattern[f];
-    mt.step(s_to_ns(0.2 * f), {m}, vis);
-    ASSERT_EQ(mt.tracks().size(), 1u);
-    EXPECT_EQ(mt.tracks()[0].static_streak, expect[f]) << "frame " << f;
-  }
-}
-
-// fit_motion: a mover along a line (with small jitter) fits with its velocity and a small residual;
-// a track jumping between wall posts fits with a large residual; the history keeps the last
-// Track::kHistory measurements only.
-TEST(Tracker, MotionFitSeparatesAMoverFromAJumpingTrack) {
-  Track mover;
-  std::mt19937 rng(7);
-  std::normal_distribution<double> jitter(0.0, 0.02);
-  for (int k = 0; k < 20; ++k) {
-    const double t = 0.2 * k;
-    mover.remember({1.0 + 0.13 * t + jitter(rng), -0.5 + 0.05 * t + jitter(rng)}, s_to_ns(t));
-  }
-  EXPECT_EQ(mover.hist_n, Track::kHistory);
-  const MotionFit f = fit_motion(mover);
-  EXPECT_EQ(f.n, Track::kHistory);
-  EXPECT_NEAR(f.span_s, 0.2 * (Track::kHistory - 1), 1e-9);
-  EXPECT_NEAR(f.v.x, 0.13, 0.03);
-  EXPECT_NEAR(f.v.y, 0.05, 0.03);
-  EXPECT_LT(f.rms_m, 0.035);
-
-  Track ghost;  // fragments of posts 0.3 m apart, associated in turn
-  for (int k = 0; k < 12; ++k) ghost.remember({2.0, 0.3 * (k % 3)}, s_to_ns(0.2 * k));
-  const MotionFit g = fit_motion(ghost);
-  EXPECT_GT(g.rms_m, 0.2);
-
-  Track one;
-  one.remember({1.0, 1.0}, 0);
-  EXPECT_EQ(fit_motion(one).n, 1);
-  EXPECT_EQ(fit_motion(one).rms_m, 0.0);
-  // exact line: residual 0, velocity exact
-  Track line;
-  for (int k = 0; k < 5; ++k) line.remember({0.1 * k, -0.2 * k}, s_to_ns(0.5 * k));
-  const MotionFit l = fit_motion(line);
-  EXPECT_NEAR(l.v.x, 0.2, 1e-9);
-  EXPECT_NEAR(l.v.y, -0.4, 1e-9);
-  EXPECT_NEAR(l.rms_m, 0.0, 1e-9);
-}
-
 TEST(Tracker, TentativeTrackDiesOnFirstVisibleMiss) {
   MultiTracker mt(TrackerParams{});
   auto vis = [](Vec2) { return true; };

@@ -3,8 +3,6 @@
 // the predicted position is inside the sensor's view (so obstacles that left the camera view coast
 // and stay available to the planner). See docs/robot.md "Tracking".
 #pragma once
-#include <algorithm>
-#include <array>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -55,36 +53,11 @@ struct Track {
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
-  int static_streak = 0;          // consecutive measurements (up to the last) with static_cells
-  // The last kHistory measurement positions and times (ring buffer, oldest at hist_head when full):
-  // fit_motion().
-  static constexpr int kHistory = 12;
-  std::array<Vec2, kHistory> hist_p{};
-  std::array<std::int64_t, kHistory> hist_ns{};
-  int hist_n = 0, hist_head = 0;
-  void remember(Vec2 p, std::int64_t t_ns) {
-    hist_p[static_cast<std::size_t>(hist_head)] = p;
-    hist_ns[static_cast<std::size_t>(hist_head)] = t_ns;
-    hist_head = (hist_head + 1) % kHistory;
-    hist_n = std::min(hist_n + 1, kHistory);
-  }
   bool updated_this_frame = false;
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
   Vec2 vel() const { return {kf.vx(), kf.vy()}; }
 };
-
-// Straight-line motion fit of a track's last measurements (Track::hist_*): least squares
-// p(t) = p0 + v t. A mover's measurements lie along a line at a steady pace; a static obstacle's
-// jitter about one place (speed ~ 0), and a "ghost" track chained from fragments of a wall jumps
-// between them (large residual). Used by the loop's [loop] mover_fit_* test.
-struct MotionFit {
-  Vec2 v;             // fitted velocity [m/s]
-  double rms_m = 0;   // RMS distance of the measurements from the fitted line [m]
-  double span_s = 0;  // time from the oldest to the newest measurement used [s]
-  int n = 0;          // measurements used
-};
-MotionFit fit_motion(const Track& tr);
 
 // Is a world point inside the sensor's field of view and range right now?
 using VisibilityFn = std::function<bool(Vec2)>;
