@@ -94,8 +94,6 @@ struct LoopParams {
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
-  double trail_fade_logodds, trail_keep_m;
-  bool static_meas_near_circle;
   bool static_meas_drop;
   bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -133,9 +131,6 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
   p.static_meas_drop = v.flag("loop.static_meas_drop");
-  p.trail_fade_logodds = v.num("loop.trail_fade_logodds");
-  p.trail_keep_m = v.num("loop.trail_keep_m");
-  p.static_meas_near_circle = v.flag("loop.static_meas_near_circle");
   p.static_meas_min_frames = static_cast<int>(v.integer("loop.static_meas_min_frames"));
   return p;
 }
@@ -263,7 +258,6 @@ json LoopResult::to_json() const {
          {"front_stops", front_stops},
          {"look_turns", look_turns},
          {"static_meas", static_meas},
-         {"trail_cells", trail_cells},
          {"blocked_frames", blocked_frames},
          {"watchdog_trips", watchdog_trips},
          {"fps_wall", fps_wall}};
@@ -601,11 +595,9 @@ LoopResult RobotLoop::run() {
           if (lp.static_meas_drop) continue;
           meas[i].static_cells = true;  // tracked, but its track counts as static (static_support)
         }
-        meas_hits[keep] = meas_hits[i];
         meas[keep++] = meas[i];
       }
       meas.resize(keep);
-      meas_hits.resize(keep);
     }
     world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
@@ -615,20 +607,7 @@ LoopResult RobotLoop::run() {
       if (r < scan.min_range_m + 0.3 || r > lp.map_range_m) return false;
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
-    const auto assoc = tracker.step(t_frame - t0, meas, visible);
-    if (lp.trail_fade_logodds > 0) {
-      // Trail fading (robot::ObstacleMap::fade_trail): cells a tracked obstacle's measurements hit and
-      // that it has moved away from, hidden from the camera by its own body, fade.
-      for (const auto& [id, mi] : assoc) {
-        const auto [b, e] = meas_hits[static_cast<std::size_t>(mi)];
-        world_map.claim(scan.hits.data() + b, e - b, id);
-        double r = meas[static_cast<std::size_t>(mi)].radius_m;
-        for (const auto& tr : tracker.tracks())
-          if (tr.id == id) r = std::max(r, tr.radius_m);
-        res.trail_cells += world_map.fade_trail(id, meas[static_cast<std::size_t>(mi)].p, r + lp.trail_keep_m,
-                                                lp.trail_fade_logodds);
-      }
-    }
+    tracker.step(t_frame - t0, meas, visible);
     if (lp.reach_lost_tracks || lp.look_before_turn_m > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
@@ -692,12 +671,8 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          // static_meas_near_circle = false: none for a track whose last measurement was static (the
-          // map's cells stand for it; seed-13 suite, scenario 49: a wall post's circle, 0.32-0.39 m for
-          // a 0.15 m post, closed a 0.72 m gap). Only safe when slow movers are not taken for static
-          // obstacles (trail_fade_logodds; docs/robot.md "Session 17").
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m && (lp.static_meas_near_circle || !tr.last_meas_static)) {
+              dist > tr.radius_m + I.rp.radius_m) {
             obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
             kinds.push_back('n');
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&

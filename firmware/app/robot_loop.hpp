@@ -68,7 +68,6 @@ struct LoopResult {
   int front_stops = 0;      // frames where the stop-distance failsafe held the robot
   int look_turns = 0;       // sensing actions begun ([loop] look_before_turn_m)
   int static_meas = 0;      // detections found static ([loop] static_meas_age_s)
-  long trail_cells = 0;     // map cells faded as a tracked obstacle's trail ([loop] trail_fade_logodds)
   int blocked_frames = 0;   // frames where the planner found no path
   int watchdog_trips = 0;
   double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan

@@ -33,7 +33,6 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     stamp_.assign(nn, 0);
     since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
     frames_hit_.assign(nn, 0);
-    owner_.assign(nn, 0);
     if (p_.remember_seen) seen_ns_.assign(nn, std::numeric_limits<std::int64_t>::min());
     first_scan_ns_ = scan.t_ns;
     init_ = true;
@@ -97,32 +96,6 @@ void ObstacleMap::integrate(const CameraScan& scan) {
       if (fwd < scan.min_range_m || logodds_[i] <= static_cast<float>(p_.l_min)) continue;
       logodds_[i] = std::max(static_cast<float>(p_.l_min), logodds_[i] - static_cast<float>(p_.miss));
     }
-}
-
-void ObstacleMap::claim(const Vec2* hits, std::size_t n, int id) {
-  if (!init_) return;
-  for (std::size_t k = 0; k < n; ++k) {
-    int ix, iy;
-    if (cell_of(hits[k], ix, iy)) owner_[static_cast<std::size_t>(iy) * n_ + ix] = id;
-  }
-}
-
-int ObstacleMap::fade_trail(int id, Vec2 centre, double keep_r, double fade, double window_m) {
-  if (!init_ || id == 0) return 0;
-  int x0, y0, x1, y1;
-  cell_window(centre, window_m, x0, y0, x1, y1);
-  int faded = 0;
-  const float occ = static_cast<float>(p_.l_occupied);
-  for (int iy = y0; iy <= y1; ++iy)
-    for (int ix = x0; ix <= x1; ++ix) {
-      const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
-      if (owner_[i] != id || stamp_[i] == frame_) continue;
-      if (norm(Vec2{sx_[i], sy_[i]} - centre) <= keep_r) continue;
-      logodds_[i] = std::max(static_cast<float>(p_.l_min), logodds_[i] - static_cast<float>(fade));
-      ++faded;
-      if (logodds_[i] <= occ) owner_[i] = 0;
-    }
-  return faded;
 }
 
 std::int64_t ObstacleMap::last_seen_ns(Vec2 p) const {

@@ -327,47 +327,6 @@ TEST(ObstacleMap, ClampBoundsHowLongACellTakesToChangeItsMind) {
   EXPECT_EQ(frames, 8);
 }
 
-// Trail fading: a mover at 2 m that steps 0.1 m sideways per frame, its surface hidden from free
-// rays (free range 0: a scan that sees nothing through). Its cells left behind (farther than keep_r
-// from its current centre, not hit this frame) fade; a static obstacle measured in the same frames
-// (another track) keeps every cell; cells of another track are untouched.
-TEST(ObstacleMap, TrailOfAMovedObstacleFadesAndAStaticOneStays) {
-  ObstacleMap map;
-  const int mover = 7, post = 8;
-  for (int k = 0; k < 10; ++k) {
-    CameraScan s = scan_at({0, 0, 0}, 0.0);
-    const double y = -0.5 + 0.1 * k;
-    s.hits = {{2.0, y - 0.05}, {2.0, y}, {2.0, y + 0.05}, {3.0, 1.0}, {3.0, 1.05}};
-    s.t_ns = k * 200'000'000LL;
-    map.integrate(s);
-    map.claim(s.hits.data(), 3, mover);
-    map.claim(s.hits.data() + 3, 2, post);
-    map.fade_trail(mover, {2.1, y}, 0.2, 1.0);
-    map.fade_trail(post, {3.1, 1.02}, 0.2, 1.0);
-  }
-  // the mover ends at y = 0.4: cells more than 0.2 m from (2.1, 0.4) are gone, the near ones stay
-  const auto obs = map.obstacles({2.0, 0.0}, 0.9);
-  double ymin = 1e9;
-  for (const auto& o : obs) ymin = std::min(ymin, o.c.y);
-  EXPECT_FALSE(obs.empty());
-  EXPECT_GT(ymin, 0.1) << "cells of the trail (y < 0.1) should have faded";
-  EXPECT_EQ(map.obstacles({3.0, 1.0}, 0.2).size(), 2u) << "the static obstacle's cells stay";
-  // without fading the whole trail stays occupied
-  ObstacleMap keep;
-  for (int k = 0; k < 10; ++k) {
-    CameraScan s = scan_at({0, 0, 0}, 0.0);
-    const double y = -0.5 + 0.1 * k;
-    s.hits = {{2.0, y - 0.05}, {2.0, y}, {2.0, y + 0.05}};
-    keep.integrate(s);
-  }
-  double kmin = 1e9;
-  for (const auto& o : keep.obstacles({2.0, 0.0}, 0.9)) kmin = std::min(kmin, o.c.y);
-  EXPECT_LT(kmin, -0.4);
-  // fade_trail of an unknown id or id 0 does nothing
-  EXPECT_EQ(map.fade_trail(0, {2.0, 0.0}, 0.0, 5.0), 0);
-  EXPECT_EQ(map.fade_trail(99, {2.0, 0.0}, 0.0, 5.0), 0);
-}
-
 TEST(ObstacleMap, HitsOutsideTheGridAreIgnored) {
   ObstacleMapParams p;
   p.extent_m = 4.0;  // +-2 m around the first pose

@@ -62,15 +62,6 @@ class ObstacleMap {
   // nothing nearer), or a surface point in its cell. INT64_MIN when never seen, off the grid or
   // without ObstacleMapParams::remember_seen.
   std::int64_t last_seen_ns(Vec2 p) const;
-  // Trail fading ([loop] trail_fade_logodds): the cells hit by a tracked obstacle's measurement
-  // (hits[0..n), this scan's) are marked as its (track id). A cell marked as track `id`'s, not hit in
-  // this scan and whose mean hit point lies farther than keep_r from the track's measured centre
-  // loses `fade` log-odds: the obstacle moved away from it. The camera clears a cell only when it sees
-  // through it, and a mover's own body hides the cells it just left, so without this a slow mover
-  // leaves a trail of occupied cells (which the static tests then read as old, static surface).
-  // A static obstacle's cells in view are hit every scan and never fade. Returns the cells faded.
-  void claim(const Vec2* hits, std::size_t n, int id);
-  int fade_trail(int id, Vec2 centre, double keep_r, double fade, double window_m = 2.0);
   // Capture time of the first scan integrated (the map knows nothing older); 0 before any scan.
   std::int64_t first_scan_ns() const { return first_scan_ns_; }
   const ObstacleMapParams& params() const { return p_; }
@@ -90,7 +81,6 @@ class ObstacleMap {
   std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
   std::vector<std::uint16_t> frames_hit_;  // frames with a hit since the cell became occupied
   std::vector<std::int64_t> seen_ns_;   // capture time of the last scan that saw the cell
-  std::vector<std::int32_t> owner_;     // track whose measurement last hit the cell (0 = none; claim())
   std::uint32_t frame_ = 0;
   std::int64_t first_scan_ns_ = 0;
 };
