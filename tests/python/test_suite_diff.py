@@ -80,12 +80,12 @@ def test_mismatched_files_name_the_problem(tmp_path):
         diff(base, fewer)
     bad = tmp_path / "d.json"
     bad.write_text("{not json")
-    with pytest.raises(FatalError, match="not JSON"):
+    with pytest.raises(FatalError, match="is not valid JSON"):
         diff(base, bad)
     (tmp_path / "e.json").write_text(json.dumps({"seed": 11}))
     with pytest.raises(FatalError, match="no 'scenarios' list"):
         diff(base, tmp_path / "e.json")
-    with pytest.raises(FatalError, match="no such file"):
+    with pytest.raises(FatalError, match="cannot read"):
         diff(base, tmp_path / "missing.json")
 
 

@@ -5,6 +5,12 @@ fault; :func:`fuzzyctl.cli.main` catches it once, prints the line and exits non-
 habit). Anything else escaping is a bug and keeps its traceback.
 """
 
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
 
 class FatalError(RuntimeError):
     """A user or device fault: printed as one line by ``main()``, exit code 2."""
@@ -23,3 +29,13 @@ class CheckFailed(FatalError):
     """A check ran and its result is outside tolerance (``fis check``, ``compare``): exit code 1."""
 
     exit_code = 1
+
+
+def load_json(path: Path) -> Any:
+    """The parsed JSON file; FatalError naming the file when it is missing, unreadable or not JSON."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise FatalError(f"cannot read {path}: {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise FatalError(f"{path} is not valid JSON: {exc}") from exc

@@ -18,7 +18,6 @@ already there), so ``fuzzyctl compare --dataset --report DIR`` outputs can be sc
 
 from __future__ import annotations
 
-import json
 import tempfile
 import time
 from dataclasses import dataclass
@@ -31,7 +30,7 @@ import numpy as np
 from . import firmware
 from .config import Config, load_config
 from .dataset import Frame, load_ground_truth
-from .errors import FatalError
+from .errors import FatalError, load_json
 from .metrics import FIGURES, DispMetrics, disp_q4_to_float, evaluate_disparity, set_means
 
 SOURCES = ("reference", "firmware")
@@ -138,12 +137,7 @@ def summarise(scores: list[FrameScore], method: str) -> dict:
 def read_eval_json(path: str | Path) -> dict:
     """A firmware ``eval --json`` file; FatalError naming it when it does not have the eval shape."""
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise FatalError(f"cannot read {path}: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise FatalError(f"{path} is not valid JSON: {exc}") from exc
+    doc = load_json(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("sets"), dict):
         raise FatalError(f"{path}: expected {{\"sets\": {{SET: {{METHOD: {{...}}}}}}}} (fuzzystereo eval --json)")
     return doc

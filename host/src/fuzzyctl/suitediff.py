@@ -10,13 +10,12 @@ run only): the probability that a change with no effect moves at least that many
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import FatalError
+from .errors import FatalError, load_json
 
 # Outcome classes of a solvable scenario, worst first (for "worse"/"better" of a changed pair).
 _SOLVABLE_RANK = {"collision": 0, "struck": 1, "timeout": 2, "blocked_stop": 3, "error": 2, "reached": 4}
@@ -57,12 +56,7 @@ class PairDiff:
 
 
 def _load(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise FatalError(f"{path}: no such file (a `fuzzystereo sim suite --json FILE` result)") from None
-    except json.JSONDecodeError as exc:
-        raise FatalError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
+    data = load_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("scenarios"), list):
         raise FatalError(f"{path}: no 'scenarios' list (expected `fuzzystereo sim suite --json` output)")
     return data
