@@ -101,3 +101,42 @@ def test_cli_prints_tables_and_writes_json(tmp_path, capsys):
     assert math.isclose(j["pairs"][0]["sign_test_p"], 1.0)
     assert main(["suite-diff", str(base)]) != 0
     assert "pairs of files" in capsys.readouterr().err
+
+
+def _run_record(root: Path, name: str, status: str, reached: bool, safe_stop: bool, shortest_m) -> Path:
+    d = root / name
+    d.mkdir(parents=True)
+    run = {"scenario": name, "source": "sim", "start": [0.0, 0.0, 0.0], "goal": [3.0, 0.0], "robot_radius_m": 0.15,
+           "world": {"obstacles": [{"id": 0, "shape": "circle", "radius": 0.2, "x": 1.5, "y": 0.4, "vx": 0.0, "vy": 0.0}]},
+           "result": {"status": status, "reached": reached, "safe_stop": safe_stop, "time_s": 12.0, "path_m": 3.1,
+                      "shortest_m": shortest_m, "min_clearance_m": 0.2}}
+    (d / "run.json").write_text(json.dumps(run))
+    frames = [{"frame": k, "t": 0.2 * k, "pose": [0.1 * k, 0.0, 0.0], "true_pose": [0.1 * k, 0.0, 0.0],
+               "cmd": [0.3, 0.0], "tracks": []} for k in range(10)]
+    (d / "frames.jsonl").write_text("\n".join(json.dumps(f) for f in frames) + "\n")
+    return d
+
+
+def test_suite_report_lists_runs_and_plots_failures(tmp_path, capsys):
+    from fuzzyctl.runreport import write_suite_report
+
+    rec = tmp_path / "rec"
+    _run_record(rec, "suite-11-0", "reached", True, False, 3.0)
+    _run_record(rec, "suite-11-1", "timeout", False, False, 3.0)
+    _run_record(rec, "suite-11-2", "blocked_stop", False, True, 3.0)   # solvable: a failure
+    _run_record(rec, "suite-11-b0", "blocked_stop", False, True, None)  # no path: a success
+    out, n, failed = write_suite_report(rec, tmp_path / "s.html")
+    assert (n, failed) == (4, 2)
+    page = out.read_text()
+    assert page.count("<figure") == 2
+    assert "suite-11-1: timeout" in page and "suite-11-2: blocked_stop" in page
+    assert page.index("suite-11-1") < page.index("suite-11-0")  # failures first
+    _, _, _ = write_suite_report(rec, tmp_path / "all.html", failures_only=False)
+    assert (tmp_path / "all.html").read_text().count("<figure") == 4
+    assert main(["suite-report", str(rec)]) == 0
+    assert "4 runs, 2 failed" in capsys.readouterr().out
+    assert (rec / "suite.html").is_file()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(FatalError, match="no run records"):
+        write_suite_report(empty, tmp_path / "x.html")

@@ -547,6 +547,19 @@ def report_cmd(run_dir: Path, out: Path | None, max_frames: int) -> None:
     console.print(f"report: {path}")
 
 
+@app.command("suite-report", short_help="HTML page of a suite's run records: every run, failures plotted.")
+@click.argument("record_dir", type=click.Path(path_type=Path, file_okay=False))
+@click.option("--out", type=_path, default=None, help="HTML file (default RECORD_DIR/suite.html).")
+@click.option("--all", "all_runs", is_flag=True, help="Plot every run, not only the failed ones.")
+def suite_report_cmd(record_dir: Path, out: Path | None, all_runs: bool) -> None:
+    """Table of every run of `fuzzystereo sim suite --record RECORD_DIR` and the trajectory plot of each
+    failed one (robot path, obstacles with their motion, tracks), failures first."""
+    from .runreport import write_suite_report
+
+    path, n, failed = write_suite_report(record_dir, out or record_dir / "suite.html", failures_only=not all_runs)
+    console.print(f"suite report: {path} ({n} runs, {failed} failed)")
+
+
 @app.command("track-errors", short_help="Tracker measurement and velocity errors of simulator run records.")
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
 @click.option("--min-hits", type=click.IntRange(1, 1000), default=4, show_default=True,

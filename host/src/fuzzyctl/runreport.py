@@ -236,3 +236,66 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.3f}"
     return str(v)
+
+
+def _thumb_png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=55, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _run_dirs(record_dir: Path) -> list[Path]:
+    return sorted(p.parent for p in Path(record_dir).glob("*/run.json"))
+
+
+def write_suite_report(record_dir: Path, out: Path, failures_only: bool = True) -> tuple[Path, int, int]:
+    """One HTML page for a suite's run records (``fuzzystereo sim suite --record DIR``): a table of
+    every run (status, time, path, clearance) and the trajectory plot of each failed run (of every
+    run with failures_only = False), failures first. Returns (out, runs, failures)."""
+    dirs = _run_dirs(record_dir)
+    if not dirs:
+        raise FatalError(f"{record_dir}: no run records (*/run.json; record with `fuzzystereo sim suite --record DIR`)")
+    runs = []
+    for d in dirs:
+        run, frames = load_run(d)
+        res = run.get("result", {})
+        status = str(res.get("status", "reached" if res.get("reached") else "?"))
+        # success: the goal where a path exists (finite shortest_m), a safe stop where none does (a
+        # "blocked" stop in a solvable scenario is a failure)
+        shortest = res.get("shortest_m")
+        solvable = isinstance(shortest, (int, float)) and math.isfinite(shortest)
+        ok = bool(res.get("reached")) if solvable else bool(res.get("safe_stop"))
+        runs.append((ok, d.name, status, run, frames))
+    runs.sort(key=lambda r: (r[0], r[1]))
+    failed = sum(1 for r in runs if not r[0])
+    rows = []
+    for ok, name, status, run, _ in runs:
+        res = run.get("result", {})
+        colour = "" if ok else " style='color:#b00'"
+        rows.append(
+            f"<tr{colour}><td><a href='#{html.escape(name)}'>{html.escape(name)}</a></td><td>{html.escape(status)}</td>"
+            f"<td>{_fmt(res.get('time_s', ''))}</td><td>{_fmt(res.get('path_m', ''))}</td>"
+            f"<td>{_fmt(res.get('shortest_m', ''))}</td><td>{_fmt(res.get('min_clearance_m', ''))}</td></tr>")
+    figs = []
+    for ok, name, status, run, frames in runs:
+        if ok and failures_only:
+            continue
+        figs.append(f"<figure id='{html.escape(name)}'><img src='{_thumb_png(trajectory_figure(run, frames))}'>"
+                    f"<figcaption>{html.escape(name)}: {html.escape(status)}</figcaption></figure>")
+    parts = [
+        "<!doctype html><meta charset='utf-8'><title>fuzzystereo suite</title>",
+        "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}td,th{padding:2px 8px;text-align:left}"
+        "figure{display:inline-block;margin:6px;vertical-align:top}img{max-width:380px}</style>",
+        f"<h1>fuzzystereo suite — {html.escape(str(record_dir))}</h1>",
+        f"<p>{len(runs)} runs, {failed} failed (collision, struck, timeout, or no safe stop where no path exists)</p>",
+        "<table><tr><th>run</th><th>status</th><th>time s</th><th>path m</th><th>shortest m</th><th>min clearance m</th></tr>"
+        + "".join(rows) + "</table>",
+        "<h2>" + ("Failed runs" if failures_only else "All runs") + "</h2>" + ("".join(figs) or "<p>none</p>"),
+    ]
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(parts))
+    return out, len(runs), failed
