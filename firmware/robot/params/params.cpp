@@ -67,7 +67,6 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_ratio = v.num("planner.route_keep_ratio");
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
-  p.turn_in_place_deg = v.num("planner.turn_in_place_deg");
   p.unseen_check_s = v.num("planner.unseen_check_s");
   return p;
 }

@@ -397,16 +397,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   const double carrot_dist0 = norm(out.carrot - pos);
   const bool check_seen = pp_.unseen_check_s > 0 && static_cast<bool>(ctx.recently_seen);
   const double lead = rp_.radius_m + pp_.safety_margin_m;
-  // Turn before driving ([planner] turn_in_place_deg): with the carrot further off the heading than
-  // this, only the slowest speed of the window is sampled (the robot slows and turns on the spot):
-  // the camera then sweeps the side the robot is about to drive into before it moves there. A
-  // forward arc that turns sharply drives the body into ground outside the +-50 deg view (the
-  // movers that hit the robot from its side: seed 13, scenarios 16 and 46; seed 11, 20).
-  const Vec2 to_carrot = out.carrot - pos;
-  const bool turn_first = pp_.turn_in_place_deg > 0 && norm(to_carrot) > 1e-6 &&
-                          std::abs(wrap_angle(std::atan2(to_carrot.y, to_carrot.x) - pose.yaw)) >
-                              pp_.turn_in_place_deg * M_PI / 180.0;
-  for (int iv = 0; iv < (turn_first ? 1 : dw.nv); ++iv) {
+  for (int iv = 0; iv < dw.nv; ++iv) {
     for (int iw = 0; iw < dw.nw; ++iw) {
       const auto [v, w] = dw.at(iv, iw);
       if (check_seen && v > 0.02 && drives_into_unseen(pose, v, w, lead, pp_, ctx.recently_seen)) continue;

@@ -152,26 +152,6 @@ TEST(Planner, FreeSpaceDrivesTowardsTheGoal) {
   EXPECT_GT(l.cmd.omega, 0.1);
 }
 
-// turn_in_place_deg: with the goal behind the standing robot it turns on the spot (v = 0) instead of
-// driving a sharp forward arc; moving at 0.3 m/s it slows to the window's lowest speed; a goal ahead
-// is driven to as before.
-TEST(Planner, TurnsOnTheSpotBeforeDrivingToAGoalBehind) {
-  PlannerParams pp = planner();
-  const Planner plain(pp, robot());
-  pp.turn_in_place_deg = 90.0;
-  const Planner turn(pp, robot());
-  const PlanOutput a = plain.plan({0, 0, 0}, {0.0, 0.0}, {-1.0, -3.0}, {});
-  EXPECT_GT(a.cmd.v, 0.05) << "without the field the robot drives a forward arc";
-  const PlanOutput b = turn.plan({0, 0, 0}, {0.0, 0.0}, {-1.0, -3.0}, {});
-  EXPECT_EQ(b.status, PlanStatus::kMoving);
-  EXPECT_DOUBLE_EQ(b.cmd.v, 0.0);
-  EXPECT_LT(b.cmd.omega, -0.1);  // the goal is to the right-behind: turn right
-  const PlanOutput c = turn.plan({0, 0, 0}, {0.3, 0.0}, {-1.0, -3.0}, {});
-  EXPECT_LT(c.cmd.v, 0.3 - 0.5 * robot().max_accel_mps2 * pp.control_period_s);
-  const PlanOutput d = turn.plan({0, 0, 0}, {0.3, 0.0}, {4.0, 0.5}, {});
-  EXPECT_GT(d.cmd.v, 0.25);
-}
-
 TEST(Planner, ReachedStops) {
   const Planner p(planner(), robot());
   const PlanOutput o = p.plan({1.0, 1.0, 0}, {0.2, 0}, {1.05, 1.0}, {});

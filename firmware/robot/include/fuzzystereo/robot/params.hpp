@@ -77,8 +77,6 @@ struct PlannerParams {
                                      // 0 = off (a new A* route every frame; docs/robot.md)
   double route_keep_extra_m = 0.0;   // ... plus this much [m]
   double route_keep_offset_m = 0.3;  // the robot must be within this of the kept path [m]
-  double turn_in_place_deg = 0.0;    // carrot further off the heading than this: slow down and turn
-                                     // on the spot first (only the window's slowest speed); 0 = off
   double unseen_check_s = 0.0;       // look where you drive: an arc with v > 0 whose leading point
                                      // (radius + safety margin ahead) enters ground the camera has not
                                      // seen recently within this time is not driven; 0 = off [s]
