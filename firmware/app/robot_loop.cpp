@@ -94,8 +94,7 @@ struct LoopParams {
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
-  bool static_meas_drop;
-  bool static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
+  bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
@@ -581,9 +580,9 @@ LoopResult RobotLoop::run() {
       // static_meas_age_s before this frame (both silhouette ends too) is a static obstacle the map
       // already holds: it is still tracked, but its track counts as a static obstacle's (static_support
       // above: no mover, no growth); with static_meas_drop it goes to the map only. Movers arrive at
-      // fresh cells (faster than about one cell per static_meas_age_s). Cause: static obstacles' fragments made 330 of 358 "moving" confirmed
-      // tracks on the seed-11 timeouts (docs/robot.md "Static support of a track"); their circles
-      // and reachable sets close gaps.
+      // fresh cells (faster than about one cell per static_meas_age_s). Cause: static obstacles'
+      // fragments made 330 of 358 "moving" confirmed tracks on the seed-11 timeouts (docs/robot.md
+      // "Static support of a track"); their circles and reachable sets close gaps.
       const std::int64_t before = scan.t_ns - robot::s_to_ns(lp.static_meas_age_s);
       std::size_t keep = 0;
       for (std::size_t i = 0; i < meas.size(); ++i) {

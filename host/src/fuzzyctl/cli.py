@@ -611,25 +611,26 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
 
     from rich.table import Table
 
-    from .suitediff import diff, sign_test_p, to_json
+    from .suitediff import diff, to_json
 
     if len(files) % 2:
         raise FatalError(f"suite-diff takes pairs of files (BASE NEW ...); got {len(files)}")
     pairs = [diff(files[i], files[i + 1], _math.inf if time_change is None else time_change)
              for i in range(0, len(files), 2)]
+    j = to_json(pairs)
     t = Table(title="closed-loop suites, base -> new")
     for col in ("seed", "reached", "collisions", "struck", "safe stops", "mean time to goal s", "gained", "lost", "sign p"):
         t.add_column(col, justify="right")
     def mt(v: float | None) -> str:
         return "-" if v is None else f"{v:.1f}"
-    for p in pairs:
+    for p, pj in zip(pairs, j["pairs"]):
         b, n = p.base, p.new
         t.add_row(str(b.seed), f"{b.reached} -> {n.reached} / {b.solvable}", f"{b.collisions} -> {n.collisions}",
                   f"{b.struck} -> {n.struck}", f"{b.safe_stops} -> {n.safe_stops} / {b.blocked}",
                   f"{mt(b.mean_time_reached_s)} -> {mt(n.mean_time_reached_s)}", str(p.gained), str(p.lost),
-                  f"{sign_test_p(p.gained, p.lost):.2f}")
+                  f"{pj['sign_test_p']:.2f}")
     if len(pairs) > 1:
-        tot = to_json(pairs)["total"]
+        tot = j["total"]
         t.add_row("all", f"{tot['reached_base']} -> {tot['reached_new']} / {tot['solvable']}",
                   f"{tot['collisions_base']} -> {tot['collisions_new']}", "",
                   f"{tot['safe_stops_base']} -> {tot['safe_stops_new']} / {tot['blocked']}", "",
@@ -649,7 +650,7 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
                       f"[{style.get(row['change'], '')}]{row['change']}[/]" if row["change"] in style else row["change"])
         console.print(c)
     if json_out is not None:
-        json_out.write_text(_json.dumps(to_json(pairs), indent=2) + "\n")
+        json_out.write_text(_json.dumps(j, indent=2) + "\n")
         console.print(f"wrote {json_out}")
 
 

@@ -62,22 +62,6 @@ def _load(path: Path) -> dict[str, Any]:
     return data
 
 
-def _status(s: dict[str, Any]) -> str:
-    st = s.get("status")
-    if isinstance(st, str):
-        return st
-    # older files: derive from the flags
-    if s.get("collided"):
-        return "collision"
-    if s.get("struck"):
-        return "struck"
-    if s.get("reached"):
-        return "reached"
-    if s.get("safe_stop"):
-        return "blocked_stop"
-    return "timeout"
-
-
 def outcomes(path: Path) -> tuple[SuiteSummary, dict[str, Outcome]]:
     """The summary and the per-scenario outcomes of one suite JSON file."""
     data = _load(path)
@@ -85,11 +69,11 @@ def outcomes(path: Path) -> tuple[SuiteSummary, dict[str, Outcome]]:
     out: dict[str, Outcome] = {}
     times = []
     for i, s in enumerate(data["scenarios"]):
-        if "index" not in s:
-            raise FatalError(f"{path}: scenarios[{i}] has no 'index'")
+        if "index" not in s or not isinstance(s.get("status"), str):
+            raise FatalError(f"{path}: scenarios[{i}] has no 'index' or no 'status'")
         blocked = bool(s.get("blocked", False))
         key = f"b{s['index']}" if blocked else str(s["index"])
-        st = _status(s)
+        st = s["status"]
         success = bool(s.get("safe_stop")) if blocked else bool(s.get("reached", st == "reached"))
         t = float(s.get("time_s") or 0.0)
         out[key] = Outcome(key, blocked, st, success, t, str(s.get("features", "")).strip())
