@@ -223,8 +223,9 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
 // The cache always holds the sparse ESR map (MatchResult::disp_esr, before [densify]); DIR/disparity_map.txt
 // says so ("esr"; a cache without it predates the file and holds ESR maps too). With [detect] input =
 // "dense", the densify stage is applied to the map after reading: densify() is a pure function of the ESR
-// map and [densify], exactly what the matcher runs (matcher.cpp), so the result is bit-identical to the
-// matcher's disp_final, and one cache serves every [densify] setting. The recorded matcher config therefore
+// map, the right-reference WTA map (its occlusion fill; cached beside the ESR map as NNNNNN_10_right.png
+// when the dense input needs it) and [densify], exactly what the matcher runs (matcher.cpp), so the result
+// is bit-identical to the matcher's disp_final, and one cache serves every [densify] setting. The recorded matcher config therefore
 // carries [densify] at its defaults with enabled = false (the settings the ESR maps are independent of).
 constexpr const char* kCacheMap = "esr";
 
@@ -315,6 +316,7 @@ void run_detect_eval(const EvalOptions& o) {
   // input, densify() is applied below to the ESR map, fresh or cached (see check_cache_config).
   const DetectInput input = detect_input_from(cfg.values);
   const bool densify_after = !o.oracle && input == DetectInput::Dense && cfg.matcher.densify.enabled;
+  const bool need_right = densify_after && cfg.matcher.densify.occlusion_fill;  // the occlusion fill reads it
   MatcherParams esr_params = detection_matcher_params(cfg.matcher, DetectInput::Esr);
   esr_params.densify = DensifyParams{};
   esr_params.densify.enabled = false;
@@ -350,25 +352,30 @@ void run_detect_eval(const EvalOptions& o) {
       gt.push_back(x);
     }
     const cv::Mat lc = read_image((tr / "image_2" / (s + ".png")).string(), cv::IMREAD_COLOR);
-    ImageI16 disp;
+    ImageI16 disp, disp_right;
     StageTimings mt;
     bool frame_matched = false;
     if (o.oracle) {
       disp = read_kitti_disparity_q4((tr / "disp_occ_0" / (s + ".png")).string());
-    } else if (use_cache && read_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), &disp)) {
+    } else if (use_cache && read_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), &disp) &&
+               (!need_right || read_cached_disp(stdfs::path(o.disparity_cache) / (s + "_right.png"), &disp_right))) {
       timed = false;
     } else {
       const cv::Mat rc = read_image((tr / "image_3" / (s + ".png")).string(), cv::IMREAD_COLOR);
       if (rc.size() != lc.size()) throw UserError("frame " + s + ": left and right sizes differ");
       const MatchResult mr = matcher->match(to_core_gray(lc), to_core_gray(rc));
       disp = mr.disp_esr;
+      disp_right = mr.disp_right_wta;
       mt = mr.timings;
       frame_matched = true;
-      if (use_cache) write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
+      if (use_cache) {
+        write_cached_disp(stdfs::path(o.disparity_cache) / (s + ".png"), disp);
+        if (need_right) write_cached_disp(stdfs::path(o.disparity_cache) / (s + "_right.png"), disp_right);
+      }
     }
     if (densify_after) {
       const auto t0 = std::chrono::steady_clock::now();
-      disp = densify(disp, cfg.matcher.densify, nullptr);
+      disp = densify(disp, cfg.matcher.densify, nullptr, need_right ? &disp_right : nullptr);
       mt.ms[std::size_t(Stage::Densify)] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       densify_ms += mt.ms[std::size_t(Stage::Densify)];
     }

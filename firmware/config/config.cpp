@@ -168,10 +168,6 @@ MatcherParams to_params(const Values& v) {
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.lr.max_diff = i("lr_check.max_diff");
-  p.lr.recover = v.flag("lr_check.recover");
-  p.lr.recover_max_valid_pct = i("lr_check.recover_max_valid_pct");
-  p.lr.recover_min_consistent_pct = i("lr_check.recover_min_consistent_pct");
-  p.lr.recover_min_score_pct = i("lr_check.recover_min_score_pct");
   p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
   p.esr.tau = v.num("esr.tau");
@@ -182,7 +178,7 @@ MatcherParams to_params(const Values& v) {
   p.densify.interpolate_max_diff = i("densify.interpolate_max_diff");
   p.densify.occlusion_fill = v.flag("densify.occlusion_fill");
   p.densify.occlusion_dilate = i("densify.occlusion_dilate");
-  p.densify.occlusion_min_jump = i("densify.occlusion_min_jump");
+  p.densify.occlusion_max_gap = i("densify.occlusion_max_gap");
   p.runtime.threads = i("runtime.threads");
   return p;
 }
@@ -275,16 +271,13 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nnoise_image_passes = " << p.cost.noise_image_passes
     << "\nnoise_gradient_passes = " << p.cost.noise_gradient_passes << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
-    << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\nrecover = " << (p.lr.recover ? "true" : "false")
-    << "\nrecover_max_valid_pct = " << p.lr.recover_max_valid_pct
-    << "\nrecover_min_consistent_pct = " << p.lr.recover_min_consistent_pct
-    << "\nrecover_min_score_pct = " << p.lr.recover_min_score_pct << "\n\n"
+    << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
     << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"
     << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
     << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
     << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff
-    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false") << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_min_jump = " << p.densify.occlusion_min_jump << "\n\n"
+    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false") << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap << "\n\n"
     << "[runtime]\nthreads = " << p.runtime.threads << "\n\n"
     << "[testing]\ninject_shift = " << p.cost.inject_shift << "\n";
   return s.str();

@@ -149,9 +149,21 @@ void BM_Densify(benchmark::State& st) {
   const auto p = params();
   const fs::Matcher m(p, fs::load_fis_definition(""));
   const auto r = m.match(pair().left, pair().right);
-  for (auto _ : st) benchmark::DoNotOptimize(fs::densify(r.disp_esr, p.densify, nullptr));
+  for (auto _ : st) benchmark::DoNotOptimize(fs::densify(r.disp_esr, p.densify, nullptr, &r.disp_right_wta));
 }
 BENCHMARK(BM_Densify)->Unit(benchmark::kMillisecond);
+
+// The occlusion fill alone (docs/algorithm.md 6c), on the ESR map.
+void BM_OcclusionFill(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st) {
+    fs::ImageI16 d = r.disp_esr;
+    benchmark::DoNotOptimize(fs::occlusion_fill(d, r.disp_right_wta, p.densify.occlusion_dilate, p.densify.occlusion_max_gap, nullptr));
+  }
+}
+BENCHMARK(BM_OcclusionFill)->Unit(benchmark::kMillisecond);
 
 // The plain 8-ray median fill (interpolate_max_diff = 0): the cost of the slant-aware fill.
 void BM_DensifyPlainMedian(benchmark::State& st) {
@@ -159,6 +171,7 @@ void BM_DensifyPlainMedian(benchmark::State& st) {
   const fs::Matcher m(p, fs::load_fis_definition(""));
   const auto r = m.match(pair().left, pair().right);
   p.densify.interpolate_max_diff = 0;
+  p.densify.occlusion_fill = false;
   for (auto _ : st) benchmark::DoNotOptimize(fs::densify(r.disp_esr, p.densify, nullptr));
 }
 BENCHMARK(BM_DensifyPlainMedian)->Unit(benchmark::kMillisecond);

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fuzzyctl import dump as dm
-from fuzzyctl.reference.densify import densify, median_fill
+from fuzzyctl.reference.densify import densify, median_fill, occlusion_fill, seen_by_right
 
 
 def _slanted_band(w: int = 61, h: int = 21) -> tuple[np.ndarray, np.ndarray]:
@@ -39,6 +39,40 @@ def test_densify_passes_the_threshold_to_the_fill():
     assert (changed[5:16] == 1).all() and (changed[:5] == 0).all()
 
 
+def _occluding_box(w: int = 80) -> tuple[np.ndarray, np.ndarray]:
+    """Background at 10 px, a box at 20 px over left columns 40..59 (right columns 20..39).
+    Left columns 30..39 see background the box hides from the right camera."""
+    left = np.full((3, w), 10.0)
+    left[:, 40:60] = 20.0
+    right = np.full((3, w), 10.0)
+    right[:, 20:40] = 20.0
+    return left, right
+
+
+def test_occlusion_fill_takes_the_background_of_the_occluded_run():
+    truth, right = _occluding_box()
+    seen = seen_by_right(right, 0)
+    assert not seen[:, 30:40].any() and seen[:, 40:].all() and seen[:, 10:30].all()
+    assert not seen[:, :10].any()  # the left border band: x < d has no partner
+    holes = truth.copy()
+    holes[:, 28:44] = np.nan  # the occluded run plus two seen pixels each side (mismatches)
+    out, filled = occlusion_fill(holes, right, dilate=0, max_gap=64)
+    np.testing.assert_array_equal(out[:, 30:40], 10.0)  # the background, not the box
+    assert filled[:, 30:40].all() and not filled[:, 28:30].any() and not filled[:, 40:44].any()
+    assert np.isnan(out[:, 28:30]).all() and np.isnan(out[:, 40:44]).all()  # left to the median fill
+    # dilate 1 widens every hit by a pixel: columns 30 and 39 count as seen
+    out1, filled1 = occlusion_fill(holes, right, dilate=1, max_gap=64)
+    assert filled1[:, 31:39].all() and not filled1[:, 30].any() and not filled1[:, 39].any()
+    # a run longer than max_gap is left alone
+    assert not occlusion_fill(holes, right, dilate=0, max_gap=15)[1].any()
+    # the median fill alone puts the mean of background and box into the occluded run
+    plain, _ = densify(holes, True, 0, 3.0, True)
+    assert np.abs(plain[:, 30:40] - 10.0).max() >= 4.0
+    dense, changed = densify(holes, True, 0, 3.0, True, disp_right=right, occlusion_dilate=0)
+    np.testing.assert_array_equal(dense[:, 30:40], 10.0)
+    assert (changed[:, 28:44] == 1).all()
+
+
 @pytest.mark.firmware
 @pytest.mark.datasets
 def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_root, tmp_path):
@@ -56,7 +90,7 @@ def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_roo
     assert holes.mean() > 0.2, "too few holes for the check to mean anything"
 
     def agreement(threshold: float) -> float:
-        twin, _ = densify(esr, True, 100, 3.0, True, interpolate_max_diff=threshold)
+        twin, _ = densify(esr, True, 100, 3.0, True, interpolate_max_diff=threshold, disp_right=d.disp("disp_right_wta"))
         ok = ~np.isnan(twin) & ~np.isnan(final)
         return float(np.mean(np.abs(twin[ok] - final[ok])[holes[ok]] <= 1.0 / 16 + 1e-9))
 

@@ -28,7 +28,7 @@ from .config import Config, default_values, parse_config
 from .errors import FatalError
 from .fis import Fis, load_definition
 from .reference import STAGES, ReferenceResult, match
-from .reference.densify import densify
+from .reference.densify import densify_config
 from .reference.esr import entropy_selective_refinement
 from .reference.lrcheck import left_right_check
 from .reference.segmentation import label_agreement
@@ -250,8 +250,7 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
     values["esr_replaced_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_rep == (d["esr_replaced"] != 0)))
     fw_esr = d.disp("disp_esr") if "disp_esr" in d else d.disp("disp_final")  # dumps before the densify stage
     values["final_isolated_within_0px_pct"] = map_agreement(fw_esr, reference_q4(iso_final), 0)
-    dn = cfg.densify
-    iso_dense, _ = densify(fw_esr, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill, dn.interpolate_max_diff)
+    iso_dense, _ = densify_config(fw_esr, fw_wta_r, cfg.densify)
     values["densify_isolated_within_1px_pct"] = map_agreement(d.disp("disp_final"), reference_q4(iso_dense), 1)
     values["reference_fis_check_error"] = r.fis_check_error
     values["final_valid_firmware_pct"] = 100.0 * float(np.mean(d["disp_final"] != dumpmod.INVALID_DISP))

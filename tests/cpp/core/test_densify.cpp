@@ -1,6 +1,9 @@
 // Densification (speckle removal + 8-direction median fill) against plain brute-force references:
 // a union-find labelling for the speckles and a per-pixel ray walk for the fill.
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -234,11 +237,97 @@ TEST(Densify, AllInvalidStaysInvalidAndLeftBorderTakesRightNeighbour) {
   EXPECT_EQ(f.at(4, 0), (16 + 80 + 1) / 2);  // two rays: mean of left (80) and right (16)
 }
 
+// Occlusion fill, per pixel: seen when some right pixel xr lands within `dilate` px
+// (xr + round(d_r)); the run of holes found by walking left and right from the pixel.
+ImageI16 occlusion_reference(const ImageI16& d, const ImageI16& r, int dilate, int max_gap) {
+  const int w = d.width, h = d.height;
+  ImageI16 out = d;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (d.at(x, y) != kInvalidDisp) continue;
+      bool seen = false;
+      for (int xr = 0; xr < w; ++xr) {
+        const std::int16_t v = r.at(xr, y);
+        if (v == kInvalidDisp) continue;
+        const int lx = xr + static_cast<int>(std::lround(std::floor(v / 16.0 + 0.5)));
+        if (lx >= 0 && lx < w && std::abs(lx - x) <= dilate) seen = true;
+      }
+      if (seen) continue;
+      int a = x, b = x;
+      while (a - 1 >= 0 && d.at(a - 1, y) == kInvalidDisp) --a;
+      while (b + 1 < w && d.at(b + 1, y) == kInvalidDisp) ++b;
+      if (b - a + 1 > max_gap) continue;
+      const std::int16_t lv = a > 0 ? d.at(a - 1, y) : kInvalidDisp, rv = b + 1 < w ? d.at(b + 1, y) : kInvalidDisp;
+      if (lv == kInvalidDisp && rv == kInvalidDisp) continue;
+      out.at(x, y) = lv == kInvalidDisp ? rv : (rv == kInvalidDisp ? lv : std::min(lv, rv));
+    }
+  return out;
+}
+
+TEST(Densify, OcclusionFillMatchesPerPixelReference) {
+  for (int threads : {1, 3}) {
+    detail::use_threads(threads);
+    for (unsigned seed = 21; seed <= 26; ++seed) {
+      const int w = 47 + 2 * static_cast<int>(seed % 5), h = 13 + 2 * static_cast<int>(seed % 3);
+      for (int pct : {10, 60}) {
+        const ImageI16 d = blocky_disp(w, h, seed * 5 + pct, pct);
+        const ImageI16 r = blocky_disp(w, h, seed * 3 + 1, 15);
+        for (int dilate : {0, 1, 3})
+          for (int gap : {1, 8, 4096}) {
+            ImageI16 out = d;
+            ImageU8 filled(w, h, 0);
+            const int n = occlusion_fill(out, r, dilate, gap, &filled);
+            ASSERT_EQ(out.data, occlusion_reference(d, r, dilate, gap).data)
+                << "seed " << seed << " invalid " << pct << "% dilate " << dilate << " gap " << gap << " threads " << threads;
+            int changed = 0;
+            for (std::size_t i = 0; i < d.data.size(); ++i) {
+              EXPECT_EQ(filled.data[i], out.data[i] != d.data[i] ? 1 : 0);
+              changed += out.data[i] != d.data[i];
+            }
+            EXPECT_EQ(n, changed);
+          }
+      }
+    }
+  }
+  detail::use_threads(0);
+}
+
+// Background 10 px, a box at 20 px over left columns 40..59 (right columns 20..39): left columns
+// 30..39 see background the box hides from the right camera. Their holes take the background (the
+// median fill alone would mix in the box); the seen holes beside them are left to the median fill.
+TEST(Densify, OcclusionFillPutsTheBackgroundBesideANearerBox) {
+  const int w = 80;
+  ImageI16 left(w, 3, 10 * kDispScale), right(w, 3, 10 * kDispScale);
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 40; x < 60; ++x) left.at(x, y) = 20 * kDispScale;
+    for (int x = 20; x < 40; ++x) right.at(x, y) = 20 * kDispScale;
+    for (int x = 28; x < 44; ++x) left.at(x, y) = kInvalidDisp;
+  }
+  ImageI16 out = left;
+  EXPECT_EQ(occlusion_fill(out, right, 0, 64, nullptr), 3 * 10);
+  for (int x = 30; x < 40; ++x) EXPECT_EQ(out.at(x, 1), 10 * kDispScale) << x;
+  for (int x : {28, 29, 40, 43}) EXPECT_EQ(out.at(x, 1), kInvalidDisp) << x;
+  ImageI16 gap_limited = left;
+  EXPECT_EQ(occlusion_fill(gap_limited, right, 0, 15, nullptr), 0);  // the run is 16 px
+  DensifyParams p;
+  p.speckle_max_size = 0;
+  p.occlusion_dilate = 0;
+  const ImageI16 dense = densify(left, p, nullptr, &right);
+  for (int x = 30; x < 40; ++x) EXPECT_EQ(dense.at(x, 1), 10 * kDispScale) << x;
+  EXPECT_THROW(densify(left, p, nullptr), std::invalid_argument);  // occlusion_fill needs the right map
+  p.occlusion_fill = false;
+  const ImageI16 plain = densify(left, p, nullptr);
+  EXPECT_GT(plain.at(35, 1), 12 * kDispScale);  // the 8-ray median mixes in the box
+  ImageI16 small(5, 3);
+  EXPECT_THROW(occlusion_fill(small, right, 0, 64, nullptr), std::invalid_argument);
+}
+
 TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {
   ImageI16 d(5, 3, 32);
   d.at(2, 1) = 0;
   DensifyParams p;
   p.speckle_max_size = 0;
+  p.occlusion_fill = false;  // no right map here
   ImageU8 changed;
   const ImageI16 out = densify(d, p, &changed);
   EXPECT_EQ(out.at(2, 1), 32);
@@ -248,7 +337,14 @@ TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {
 }
 
 TEST(Densify, ConfigSectionReachesTheParams) {
-  const MatcherParams p = parse_matcher_config("[densify]\nenabled = false\nspeckle_max_size = 7\ninterpolate_max_diff = 3\n", "t.toml");
+  const MatcherParams p = parse_matcher_config(
+      "[densify]\nenabled = false\nspeckle_max_size = 7\ninterpolate_max_diff = 3\nocclusion_fill = false\nocclusion_dilate = 2\n"
+      "occlusion_max_gap = 9\n", "t.toml");
+  EXPECT_FALSE(p.densify.occlusion_fill);
+  EXPECT_EQ(p.densify.occlusion_dilate, 2);
+  EXPECT_EQ(p.densify.occlusion_max_gap, 9);
+  EXPECT_THROW(parse_matcher_config("[densify]\nocclusion_dilate = 9\n", "t.toml"), ConfigError);
+  EXPECT_THROW(parse_matcher_config("[densify]\nocclusion_max_gap = 0\n", "t.toml"), ConfigError);
   EXPECT_FALSE(p.densify.enabled);
   EXPECT_EQ(p.densify.speckle_max_size, 7);
   EXPECT_EQ(p.densify.interpolate_max_diff, 3);

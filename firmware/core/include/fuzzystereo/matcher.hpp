@@ -26,8 +26,7 @@ struct MatchResult {
   SegmentDecision dec_left, dec_right;
   ImageI16 disp_left_wta, disp_right_wta;  // Q4, WTA per segment
   ImageI16 disp_lr;                         // Q4, after eq. (13)
-  ImageU8 lr_mask;                          // 1 = consistent, 2 = recovered (lr_check.recover)
-  int lr_recovered = 0;                     // segments recovered by lr_recover
+  ImageU8 lr_mask;                          // 1 = consistent
   ImageI16 disp_esr;                        // Q4, after ESR (== disp_lr when ESR disabled)
   ImageU8 esr_replaced;                     // 1 = replaced by eq. (15)
   ImageI16 disp_final;                      // Q4, after densify (== disp_esr when densify disabled)

@@ -41,11 +41,6 @@ struct FisParams {
 
 struct LrParams {
   int max_diff = 1;  // eq. (13) [px]
-  // LR recovery (not in the paper, docs/algorithm.md "5b")
-  bool recover = false;
-  int recover_max_valid_pct = 0;        // [%] segments with at most this share valid are retried
-  int recover_min_consistent_pct = 50;  // [%] of the segment's pixels the new candidate must pass eq. (13) on
-  int recover_min_score_pct = 80;       // [%] of the winner's FIS score, lowest candidate tried
 };
 
 struct EsrParams {
@@ -61,9 +56,9 @@ struct DensifyParams {
   int speckle_max_diff = 3;    // [px]; neighbours within this belong to one component
   bool fill = true;            // 8-direction median fill of pixels without an estimate
   int interpolate_max_diff = 8;  // [px]; opposite rays within this are interpolated before the median, 0 = off
-  bool occlusion_fill = false;  // pixels no right pixel sees take their row's background first
-  int occlusion_min_jump = 2;   // [px] the estimate right of the gap must exceed the left one by this
-  int occlusion_dilate = 1;     // [px] a right pixel's hit also covers this many left pixels each side
+  bool occlusion_fill = true;  // holes no right pixel sees take their row's background first (6c)
+  int occlusion_dilate = 1;    // [px] a right pixel's hit also covers this many left pixels each side
+  int occlusion_max_gap = 64;  // [px] longer runs of holes are left to the median fill
 };
 
 struct RuntimeParams {

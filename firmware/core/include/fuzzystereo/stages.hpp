@@ -139,16 +139,6 @@ inline int partner_x(int x, std::int16_t d_q4) { return x - ((d_q4 + kDispScale 
 ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right, const LrParams& p,
                           ImageU8* mask);
 
-// ---- recover/ ------------------------------------------------------------------------------
-// Not in the paper (docs/algorithm.md "5b"). For every left segment with at most
-// p.recover_max_valid_pct % of its pixels left valid by eq. (13): its other candidates in descending
-// FIS score (down to p.recover_min_score_pct % of the winner's) are checked against disp_right; the
-// first consistent on >= p.recover_min_consistent_pct % of the segment is written to those of its
-// pixels where it is consistent (lr_mask 2 there). Returns the number of segments recovered.
-int lr_recover(ImageI16& disp_lr, ImageU8* lr_mask, const ImageI16& disp_right, const Segmentation& seg,
-               const SegmentCosts& costs, const SegmentDecision& dec, const FisLut& fis, const CostParams& cp,
-               const LrParams& p);
-
 // ---- esr/ -----------------------------------------------------------------------------------
 // eq. (14): Shannon entropy [bit] of the integer disparities in a w x w block around every pixel
 // (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
@@ -176,15 +166,18 @@ int remove_speckles(ImageI16& disp, int max_size, int max_diff_q4, ImageU8* remo
 // rays whose two values differ by at most interp_max_diff_q4 (one surface on both sides) gives
 // both its slots the linear interpolation between them, (a*tb + b*ta) / (ta + tb) rounded half
 // up, ta and tb = the steps to each value; 0 = the plain median of the 8 ray values.
-ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_q4 = 0, const ImageU8* occluded = nullptr);
+ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_q4 = 0);
 // Q4 value 0 (disparity 0, no match in range) counts as no estimate; then remove_speckles, then
+// occlusion_fill when p.occlusion_fill (disp_right required then, else std::invalid_argument), then
 // median_fill (with p.interpolate_max_diff) when p.fill. changed (optional): 0 kept, 1 filled, 2 zero or removed
 // as a speckle (then filled when p.fill).
 ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed, const ImageI16* disp_right = nullptr);
-// Occlusion fill (p.occlusion_fill, before the median fill): a left pixel without an estimate that no
-// right pixel sees (xr + round(d_r(xr)) misses it by more than `dilate` px) is occluded in the right
-// image; it takes the background, the smaller of the nearest estimates left and right of it in its
-// row (the one there is at a border). filled (optional, pre-sized) receives 1. Returns the count.
-int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int min_jump_q4, ImageU8* filled);
+// Occlusion fill (p.occlusion_fill, between speckle removal and the median fill; needs disp_right,
+// the right-reference WTA map): a left pixel without an estimate that no right pixel sees
+// (xr + round(d_r(xr)) misses it by more than `dilate` px) is taken as occluded in the right image.
+// Per row, in a run of holes of at most max_gap px, those pixels take the background: the smaller of
+// the two estimates bounding the run (the one there is at an image border). filled (optional,
+// pre-sized) receives 1 per filled pixel. Returns the count.
+int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int max_gap, ImageU8* filled);
 
 }  // namespace fs

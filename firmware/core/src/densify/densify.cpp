@@ -213,7 +213,7 @@ constexpr std::array<std::array<int, 2>, 4> kOpposite{{{0, 1}, {2, 3}, {4, 7}, {
 // two horizontal rays are row buffers. Per row, the 8 ray values of the pixels without an estimate
 // are gathered into 8 short arrays and sorted there by the network (vectorised across pixels), so
 // valid pixels cost nothing. Rows are then independent and filled in parallel.
-ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_q4, const ImageU8* occluded) {
+ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_q4) {
   const int w = disp.width, h = disp.height;
   ImageI16 out = disp;
   if (filled) *filled = ImageU8(w, h, 0);
@@ -287,7 +287,6 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
         for (; x < e; ++x) idx[std::size_t(m++)] = x;
       }
       if (m == 0) continue;
-      const std::uint8_t* occ_row = occluded ? occluded->row(y) : nullptr;
       auto gather = [&](const std::int16_t* plane, std::int16_t* dst) {
         for (int r = 0; r < nh; ++r) {
           const auto [x0, x1] = hole_runs[std::size_t(r)];
@@ -329,11 +328,9 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
         int cnt = 0;
         while (cnt < 8 && cc[cnt][i] != kNone) ++cnt;
         std::int16_t v = kInvalidDisp;
-        const int x = idx[std::size_t(i)];
-        if (cnt > 0 && occ_row && occ_row[x])  // occluded: the background, second lowest (SGM's rule)
-          v = cc[cnt >= 2 ? 1 : 0][i];
-        else if (cnt > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
+        if (cnt > 0)  // median; for an even count the mean of the two middle values, rounded half up (Q4)
           v = (cnt & 1) ? cc[cnt / 2][i] : static_cast<std::int16_t>((cc[cnt / 2 - 1][i] + cc[cnt / 2][i] + 1) >> 1);
+        const int x = idx[std::size_t(i)];
         o[x] = v;
         if (filled && v != kInvalidDisp) filled->at(x, y) = 1;
       }
@@ -342,62 +339,60 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
   return out;
 }
 
-int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int min_jump_q4, ImageU8* filled) {
+// The right map is the right-reference WTA map (dense but for segments without a candidate); a
+// left pixel is "seen" when some right pixel's disparity lands on it, within `dilate` px.
+// Rows are independent.
+int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int max_gap, ImageU8* filled) {
   const int w = disp.width, h = disp.height;
   if (disp_right.width != w || disp_right.height != h)
     throw std::invalid_argument("occlusion_fill: the right map must have the size of the left map");
+  if (filled && (filled->width != w || filled->height != h))
+    throw std::invalid_argument("occlusion_fill: the filled mask must have the size of the map");
   int count = 0;
 #if defined(FS_HAVE_OPENMP)
-#pragma omp parallel for schedule(static) reduction(+ : count)
+#pragma omp parallel reduction(+ : count)
 #endif
-  for (int y = 0; y < h; ++y) {
-    std::vector<std::uint8_t> hit(std::size_t(w) + 1, 0), seen(std::size_t(w), 0);
-    const std::int16_t* r = disp_right.row(y);
-    // Visibility: right pixel xr with disparity d sees left pixel xr + round(d).
-    for (int xr = 0; xr < w; ++xr) {
-      if (r[xr] == kInvalidDisp) continue;
-      const int x = xr + ((r[xr] + kDispScale / 2) >> kDispShift);
-      if (x >= 0 && x < w) hit[std::size_t(x)] = 1;
-    }
-    for (int x = 0; x < w; ++x) {  // dilated by `dilate` px on both sides (sub-pixel rounding)
-      if (!hit[std::size_t(x)]) continue;
-      for (int k = std::max(0, x - dilate); k <= std::min(w - 1, x + dilate); ++k) seen[std::size_t(k)] = 1;
-    }
-    std::int16_t* d = disp.row(y);
-    // nearest estimate to the right of every pixel, from the unfilled row
-    std::vector<std::int16_t> next(std::size_t(w) + 1, kInvalidDisp);
-    for (int x = w - 1; x >= 0; --x) next[std::size_t(x)] = d[x] != kInvalidDisp ? d[x] : next[std::size_t(x) + 1];
-    std::vector<int> next_x(std::size_t(w) + 1, w);
-    for (int x = w - 1; x >= 0; --x) next_x[std::size_t(x)] = d[x] != kInvalidDisp ? x : next_x[std::size_t(x) + 1];
-    static const int max_gap = getenv("OCC_GAP") ? atoi(getenv("OCC_GAP")) : 100000;
-    std::int16_t prev = kInvalidDisp;
-    int prev_x = -1;
-    for (int x = 0; x < w; ++x) {
-      if (d[x] != kInvalidDisp) {
-        prev = d[x];
-        prev_x = x;
-        continue;
+  {
+    // cover[x]: number of right pixels landing within `dilate` px of left pixel x (a difference
+    // array: +1 where a landing's window starts, -1 past its end; the prefix sum is the count).
+    std::vector<std::int32_t> cover(std::size_t(w) + 1);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(static)
+#endif
+    for (int y = 0; y < h; ++y) {
+      std::fill(cover.begin(), cover.end(), 0);
+      const std::int16_t* r = disp_right.row(y);
+      for (int xr = 0; xr < w; ++xr) {  // right pixel xr sees left pixel xr + round(d_r)
+        if (r[xr] == kInvalidDisp) continue;
+        const int x = xr + ((r[xr] + kDispScale / 2) >> kDispShift);
+        if (x < 0 || x >= w) continue;  // lands outside the image
+        const int lo = std::max(0, x - dilate), hi = std::min(w - 1, x + dilate);
+        ++cover[std::size_t(lo)];
+        --cover[std::size_t(hi) + 1];
       }
-      if (seen[std::size_t(x)]) continue;
-      if (next_x[std::size_t(x)] - prev_x - 1 > max_gap) continue;
-      const std::int16_t nx = next[std::size_t(x)];
-      // An occlusion in the right image lies left of a nearer surface: background left, foreground right.
-      static const int mode = getenv("OCC_MODE") ? atoi(getenv("OCC_MODE")) : 0;
-      std::int16_t v;
-      if (mode == 0) {
-        if (prev == kInvalidDisp || nx == kInvalidDisp || nx - prev < min_jump_q4) continue;
-        v = prev;
-      } else if (mode == 1) {  // |jump|, min
-        if (prev == kInvalidDisp || nx == kInvalidDisp || std::abs(nx - prev) < min_jump_q4) continue;
-        v = std::min(prev, nx);
-      } else {  // loose, borders too
-        v = prev == kInvalidDisp ? nx : (nx == kInvalidDisp ? prev : std::min(prev, nx));
-        if (v == kInvalidDisp) continue;
-        if (prev != kInvalidDisp && nx != kInvalidDisp && std::abs(nx - prev) < min_jump_q4) continue;
+      for (int x = 1; x < w; ++x) cover[std::size_t(x)] += cover[std::size_t(x) - 1];
+      std::int16_t* d = disp.row(y);
+      std::uint8_t* f = filled ? filled->row(y) : nullptr;
+      // Holes come in runs between estimates; a run is filled (its seen pixels excepted) from the
+      // estimates that bound it, read before anything in the row is written.
+      int x = 0;
+      while (x < w) {
+        if (d[x] != kInvalidDisp) { ++x; continue; }
+        int e = x + 1;
+        while (e < w && d[e] == kInvalidDisp) ++e;  // holes [x, e)
+        const std::int16_t left = x > 0 ? d[x - 1] : kInvalidDisp;
+        const std::int16_t right = e < w ? d[e] : kInvalidDisp;
+        if (e - x <= max_gap && (left != kInvalidDisp || right != kInvalidDisp)) {
+          const std::int16_t bg = left == kInvalidDisp ? right : (right == kInvalidDisp ? left : std::min(left, right));
+          for (int k = x; k < e; ++k) {
+            if (cover[std::size_t(k)] > 0) continue;
+            d[k] = bg;
+            if (f) f[k] = 1;
+            ++count;
+          }
+        }
+        x = e;
       }
-      d[x] = v;  // prev keeps the last estimate of the unfilled row
-      if (filled) filled->at(x, y) = 1;
-      ++count;
     }
   }
   return count;
@@ -423,31 +418,16 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
       rm[i] = zero ? 1 : 0;
     }
   }
+  if (p.occlusion_fill && !disp_right)
+    throw std::invalid_argument("densify: occlusion_fill needs the right-reference map (disp_right)");
   remove_speckles(d, p.speckle_max_size, p.speckle_max_diff * kDispScale, &removed);
-  ImageU8 occ_filled, occ_mask;
-  static const int mode = getenv("OCC_MODE") ? atoi(getenv("OCC_MODE")) : 0;
-  if (p.occlusion_fill && disp_right && mode == 3) {
-    occ_mask = ImageU8(disp.width, disp.height, 0);
-    for (int y = 0; y < disp.height; ++y) {
-      std::vector<std::uint8_t> hit(std::size_t(disp.width), 0);
-      const std::int16_t* r = disp_right->row(y);
-      for (int xr = 0; xr < disp.width; ++xr) {
-        if (r[xr] == kInvalidDisp) continue;
-        const int x = xr + ((r[xr] + kDispScale / 2) >> kDispShift);
-        if (x >= 0 && x < disp.width) hit[std::size_t(x)] = 1;
-      }
-      for (int x = 0; x < disp.width; ++x) {
-        bool seen = false;
-        for (int k = std::max(0, x - p.occlusion_dilate); k <= std::min(disp.width - 1, x + p.occlusion_dilate); ++k) seen |= hit[std::size_t(k)] != 0;
-        occ_mask.at(x, y) = seen ? 0 : 1;
-      }
-    }
-  } else if (p.occlusion_fill && disp_right) {
+  ImageU8 occ_filled;
+  if (p.occlusion_fill) {
     occ_filled = ImageU8(disp.width, disp.height, 0);
-    occlusion_fill(d, *disp_right, p.occlusion_dilate, p.occlusion_min_jump * kDispScale, &occ_filled);
+    occlusion_fill(d, *disp_right, p.occlusion_dilate, p.occlusion_max_gap, &occ_filled);
   }
   ImageU8 filled;
-  ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale, occ_mask.empty() ? nullptr : &occ_mask) : d;
+  ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale) : d;
   if (changed) {
     *changed = ImageU8(disp.width, disp.height);
     const std::uint8_t* __restrict rm = removed.data.data();

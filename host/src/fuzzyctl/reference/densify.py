@@ -10,6 +10,10 @@
    ``interpolate_max_diff`` > 0, each pair of opposite rays whose values differ by at most that
    many px (one surface on both sides) gives both its members the linear interpolation between
    them at the pixel before the median (slant-aware fill; docs/algorithm.md 6b).
+Before 3, with ``occlusion_fill`` (docs/algorithm.md 6c): a pixel without an estimate that no pixel of
+the right-reference map sees (xr + round(d_r(xr)) further than ``occlusion_dilate`` px from it) is
+occluded in the right image; in a run of holes along its row of at most ``occlusion_max_gap`` px it
+takes the background, the smaller of the two estimates bounding the run (the one there is at a border).
 Float64 px, NaN = invalid.
 """
 
@@ -102,15 +106,66 @@ def median_fill(disp: np.ndarray, interpolate_max_diff: float = 0.0) -> tuple[np
     return out, invalid & ~np.isnan(out)
 
 
+def seen_by_right(disp_right: np.ndarray, dilate: int) -> np.ndarray:
+    """Left pixels some right pixel lands on: x = xr + round(d_r(xr)), widened by ``dilate`` px."""
+    h, w = disp_right.shape
+    hit = np.zeros((h, w), dtype=bool)
+    ys, xr = np.nonzero(~np.isnan(disp_right))
+    x = xr + np.floor(disp_right[ys, xr] + 0.5).astype(np.int64)
+    ok = (x >= 0) & (x < w)
+    hit[ys[ok], x[ok]] = True
+    seen = hit.copy()
+    for k in range(1, dilate + 1):
+        seen[:, k:] |= hit[:, :-k]
+        seen[:, :-k] |= hit[:, k:]
+    return seen
+
+
+def occlusion_fill(disp: np.ndarray, disp_right: np.ndarray, dilate: int, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
+    """(map with the occluded holes set to their row's background, filled mask); see the module doc."""
+    if disp_right.shape != disp.shape:
+        raise ValueError(f"occlusion_fill: right map {disp_right.shape} and left map {disp.shape} differ in size")
+    seen = seen_by_right(disp_right, dilate)
+    out = disp.copy()
+    filled = np.zeros(disp.shape, dtype=bool)
+    h, w = disp.shape
+    for y in range(h):
+        holes = np.isnan(disp[y])
+        if not holes.any():
+            continue
+        # runs of holes: starts where a hole follows an estimate (or the border), ends likewise
+        edges = np.diff(np.concatenate(([0], holes.astype(np.int8), [0])))
+        for x0, x1 in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]):
+            bounds = [disp[y, x0 - 1]] if x0 > 0 else []
+            bounds += [disp[y, x1]] if x1 < w else []
+            if x1 - x0 > max_gap or not bounds:
+                continue
+            take = ~seen[y, x0:x1]
+            out[y, x0:x1][take] = min(bounds)
+            filled[y, x0:x1] = take
+    return out, filled
+
+
 def densify(
-    disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool, interpolate_max_diff: float = 0.0
+    disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool, interpolate_max_diff: float = 0.0,
+    disp_right: np.ndarray | None = None, occlusion_dilate: int = 1, occlusion_max_gap: int = 64,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(final map, changed: 0 kept, 1 filled, 2 zero or removed as a speckle)."""
+    """(final map, changed: 0 kept, 1 filled, 2 zero or removed as a speckle). The occlusion fill runs
+    when ``disp_right`` (the right-reference WTA map) is given."""
     if not enabled:
         return disp.copy(), np.zeros(disp.shape, dtype=np.uint8)
     zero = disp == 0
     d = np.where(zero, np.nan, disp)
     d, removed = remove_speckles(d, speckle_max_size, speckle_max_diff)
+    occ = np.zeros(d.shape, dtype=bool)
+    if disp_right is not None:
+        d, occ = occlusion_fill(d, disp_right, occlusion_dilate, occlusion_max_gap)
     out, filled = median_fill(d, interpolate_max_diff) if fill else (d, np.zeros(d.shape, dtype=bool))
-    changed = np.where(zero | removed, 2, np.where(filled, 1, 0)).astype(np.uint8)
+    changed = np.where(occ, 1, np.where(zero | removed, 2, np.where(filled, 1, 0))).astype(np.uint8)
     return out, changed
+
+
+def densify_config(disp: np.ndarray, disp_right: np.ndarray | None, dn) -> tuple[np.ndarray, np.ndarray]:
+    """densify with the fields of a ``[densify]`` config section (the occlusion fill when it is on)."""
+    return densify(disp, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill, dn.interpolate_max_diff,
+                   disp_right if dn.occlusion_fill else None, dn.occlusion_dilate, dn.occlusion_max_gap)

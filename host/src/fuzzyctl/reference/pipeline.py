@@ -120,7 +120,7 @@ def match(
         disp_esr, replaced, maps = disp_lr.copy(), np.zeros(left.shape, dtype=bool), {}
     clock.lap("esr")
 
-    final, changed = densify.densify(disp_esr, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill, dn.interpolate_max_diff)  # not in the paper
+    final, changed = densify.densify_config(disp_esr, disp_r, dn)  # not in the paper
     clock.lap("densify")
 
     return ReferenceResult(
