@@ -12,6 +12,8 @@
 
 #include <toml++/toml.h>
 
+#include "fuzzystereo/stages.hpp"
+
 extern const char* const fs_embedded_fis_toml;
 extern const char* const fs_embedded_default_toml;
 extern const char* const fs_embedded_schema_toml;
@@ -179,6 +181,17 @@ MatcherParams to_params(const Values& v) {
   p.densify.occlusion_fill = v.flag("densify.occlusion_fill");
   p.densify.occlusion_dilate = i("densify.occlusion_dilate");
   p.densify.occlusion_max_gap = i("densify.occlusion_max_gap");
+  p.densify.smooth = v.flag("densify.smooth");
+  p.densify.smoothing.radius = i("densify.smooth_radius");
+  p.densify.smoothing.step = i("densify.smooth_step");
+  p.densify.smoothing.sigma_space = v.num("densify.smooth_sigma_space");
+  p.densify.smoothing.sigma_range = v.num("densify.smooth_sigma_range");
+  p.densify.smoothing.sigma_range_rel = v.num("densify.smooth_sigma_range_rel");
+  if (p.densify.smoothing.radius / p.densify.smoothing.step > kMaxSmoothReach)
+    throw ConfigError(v.source + ": fields 'densify.smooth_radius' = " + std::to_string(p.densify.smoothing.radius) +
+                      " and 'densify.smooth_step' = " + std::to_string(p.densify.smoothing.step) +
+                      ": smooth_radius / smooth_step must be <= " + std::to_string(kMaxSmoothReach) +
+                      " (at most 11 x 11 taps)");
   p.runtime.threads = i("runtime.threads");
   return p;
 }
@@ -277,7 +290,14 @@ std::string config_to_toml(const MatcherParams& p) {
     << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
     << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
     << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff
-    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false") << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap << "\n\n"
+    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false") << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap
+    << "\nsmooth = " << (p.densify.smooth ? "true" : "false") << "\nsmooth_radius = " << p.densify.smoothing.radius
+    << "\nsmooth_step = " << p.densify.smoothing.step << "\nsmooth_sigma_space = " << fmt_num(p.densify.smoothing.sigma_space)
+    << (p.densify.smoothing.sigma_space == std::floor(p.densify.smoothing.sigma_space) ? ".0" : "")
+    << "\nsmooth_sigma_range = " << fmt_num(p.densify.smoothing.sigma_range)
+    << (p.densify.smoothing.sigma_range == std::floor(p.densify.smoothing.sigma_range) ? ".0" : "")
+    << "\nsmooth_sigma_range_rel = " << fmt_num(p.densify.smoothing.sigma_range_rel)
+    << (p.densify.smoothing.sigma_range_rel == std::floor(p.densify.smoothing.sigma_range_rel) ? ".0" : "") << "\n\n"
     << "[runtime]\nthreads = " << p.runtime.threads << "\n\n"
     << "[testing]\ninject_shift = " << p.cost.inject_shift << "\n";
   return s.str();

@@ -165,6 +165,15 @@ void BM_OcclusionFill(benchmark::State& st) {
 }
 BENCHMARK(BM_OcclusionFill)->Unit(benchmark::kMillisecond);
 
+// The bilateral smoothing alone (docs/algorithm.md 6d), on the dense map.
+void BM_Smooth(benchmark::State& st) {
+  const auto p = params();
+  const fs::Matcher m(p, fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  for (auto _ : st) benchmark::DoNotOptimize(fs::smooth_disparity(r.disp_final, p.densify.smoothing));
+}
+BENCHMARK(BM_Smooth)->Unit(benchmark::kMillisecond);
+
 // The plain 8-ray median fill (interpolate_max_diff = 0): the cost of the slant-aware fill.
 void BM_DensifyPlainMedian(benchmark::State& st) {
   auto p = params();

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fuzzyctl import dump as dm
-from fuzzyctl.reference.densify import densify, median_fill, occlusion_fill, seen_by_right
+from fuzzyctl.reference.densify import densify, median_fill, occlusion_fill, seen_by_right, smooth_disparity
 
 
 def _slanted_band(w: int = 61, h: int = 21) -> tuple[np.ndarray, np.ndarray]:
@@ -73,18 +73,29 @@ def test_occlusion_fill_takes_the_background_of_the_occluded_run():
     assert (changed[:, 28:44] == 1).all()
 
 
-@pytest.mark.firmware
-@pytest.mark.datasets
-def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_root, tmp_path):
-    # KITTI 2015 000046 at half size: a road, slanted in disparity, with holes after eq. (13).
+def _kitti_pair(datasets_root):
     k = datasets_root / "kitti2015" / "training"
     left, right = k / "image_2" / "000046_10.png", k / "image_3" / "000046_10.png"
     if not left.is_file() or not right.is_file():
         pytest.skip(f"{left} or {right} not found")
+    return left, right
+
+
+def _firmware_dump(firmware_bin, left, right, out, smooth: bool):
+    # KITTI 2015 000046 at half size: a road, slanted in disparity, with holes after eq. (13).
+    cfg = out.with_suffix(".toml")
+    cfg.write_text(f"[densify]\nsmooth = {'true' if smooth else 'false'}\n")
     proc = subprocess.run([str(firmware_bin), "match", "--left", str(left), "--right", str(right), "--downscale", "2",
-                           "--max-disparity", "80", "--out", str(tmp_path / "fw"), "--dump"], capture_output=True, text=True)
+                           "--max-disparity", "80", "--config", str(cfg), "--out", str(out), "--dump"],
+                          capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    d = dm.read_dump(tmp_path / "fw")
+    return dm.read_dump(out)
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_root, tmp_path):
+    d = _firmware_dump(firmware_bin, *_kitti_pair(datasets_root), tmp_path / "fw", smooth=False)
     esr, final = d.disp("disp_esr"), d.disp("disp_final")
     holes = np.isnan(np.where(esr == 0, np.nan, esr))
     assert holes.mean() > 0.2, "too few holes for the check to mean anything"
@@ -97,3 +108,18 @@ def test_firmware_interpolating_fill_matches_the_twin(firmware_bin, datasets_roo
     # the firmware rounds each interpolation to Q4; the twin does not
     assert agreement(8.0) >= 0.995
     assert agreement(0.0) < agreement(8.0) - 0.02  # the default fill is the interpolating one
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+def test_firmware_smoothing_matches_the_twin(firmware_bin, datasets_root, tmp_path):
+    # The smoothing alone: the twin smooths the firmware's unsmoothed final map.
+    left, right = _kitti_pair(datasets_root)
+    rough = _firmware_dump(firmware_bin, left, right, tmp_path / "rough", smooth=False).disp("disp_final")
+    smooth = _firmware_dump(firmware_bin, left, right, tmp_path / "smooth", smooth=True).disp("disp_final")
+    twin = smooth_disparity(rough, 6, 6, 8.0, 3.0, 0.1)
+    diff = np.abs(twin - smooth)[~np.isnan(rough)]
+    # the Q4 rounding of the mean alone is up to 1/32 px; the Q12 weights and the 1/32-sigma range table add a little
+    assert float(np.mean(diff <= 1.0 / 32 + 1e-9)) >= 0.98
+    assert diff.max() <= 1.0 / 16
+    assert float(np.mean(np.abs(rough - smooth)[~np.isnan(rough)] > 1.0 / 16)) > 0.2  # it did change the map

@@ -51,8 +51,8 @@ def test_detect_reads_the_chosen_map(firmware_bin, dataset, tmp_path):
     assert holes(esr) > 0.05 * esr.size  # the sparse map has holes (LR check, ESR)
     assert holes(dense) == 0  # the 8-direction fill leaves none
     np.testing.assert_array_equal(off, esr)  # dense without the densify stage is the ESR map
-    # Where densify kept a pixel, it is the ESR value.
-    kept = (esr > 0) & (dense == esr)
+    # Where the ESR map has a value, the dense map keeps it up to the smoothing (docs/algorithm.md 6d).
+    kept = (esr > 0) & (np.abs(dense.astype(np.int32) - esr.astype(np.int32)) <= 256)  # within 1 px
     assert kept.sum() > 0.8 * (esr > 0).sum()
 
 

@@ -312,6 +312,7 @@ TEST(Densify, OcclusionFillPutsTheBackgroundBesideANearerBox) {
   DensifyParams p;
   p.speckle_max_size = 0;
   p.occlusion_dilate = 0;
+  p.smooth = false;  // the fill alone
   const ImageI16 dense = densify(left, p, nullptr, &right);
   for (int x = 30; x < 40; ++x) EXPECT_EQ(dense.at(x, 1), 10 * kDispScale) << x;
   EXPECT_THROW(densify(left, p, nullptr), std::invalid_argument);  // occlusion_fill needs the right map
@@ -320,6 +321,86 @@ TEST(Densify, OcclusionFillPutsTheBackgroundBesideANearerBox) {
   EXPECT_GT(plain.at(35, 1), 12 * kDispScale);  // the 8-ray median mixes in the box
   ImageI16 small(5, 3);
   EXPECT_THROW(occlusion_fill(small, right, 0, 64, nullptr), std::invalid_argument);
+}
+
+// Bilateral smoothing, per pixel and tap with explicit clamps, weights computed on the spot in
+// double and rounded as the stage's tables are.
+ImageI16 smooth_reference(const ImageI16& d, const SmoothParams& p) {
+  const int w = d.width, h = d.height, r = (p.radius / p.step) * p.step;
+  ImageI16 out(w, h, kInvalidDisp);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int c = d.at(x, y);
+      if (c == kInvalidDisp) continue;
+      std::int64_t num = 0, den = 0;
+      for (int oy = -r; oy <= r; oy += p.step)
+        for (int ox = -r; ox <= r; ox += p.step) {
+          const int v = d.at(std::clamp(x + ox, 0, w - 1), std::clamp(y + oy, 0, h - 1));
+          if (v == kInvalidDisp) continue;
+          const auto ws = std::lround(std::exp(-(ox * ox + oy * oy) / (2.0 * p.sigma_space * p.sigma_space)) * 4096);
+          // biweight: k = |delta| / (2 sigma(c)) in 1/128 steps (rounded, through the rounded reciprocal)
+          const double sigma_q4 = std::max(p.sigma_range * 16, p.sigma_range_rel * c);
+          const std::int64_t inv = std::lround(65536.0 * 128 / (2 * sigma_q4));
+          const std::int64_t k = std::min<std::int64_t>((std::int64_t(std::min(std::abs(v - c), 4095)) * inv + 32768) >> 16, 128);
+          const std::int64_t t = 4096 - k * k / 4;
+          const std::int64_t wr = t * t / 4096;
+          const std::int64_t wt = (ws * wr) >> 12;
+          num += wt * v;
+          den += wt;
+        }
+      out.at(x, y) = static_cast<std::int16_t>((2 * num + den) / (2 * den));
+    }
+  return out;
+}
+
+TEST(Densify, SmoothingMatchesPerPixelReference) {
+  std::vector<SmoothParams> ps(4);
+  ps[1].radius = 8, ps[1].step = 4, ps[1].sigma_range = 2.5, ps[1].sigma_range_rel = 0.0;
+  ps[2].radius = 3, ps[2].step = 1, ps[2].sigma_space = 2.0, ps[2].sigma_range = 30.0;
+  ps[3].sigma_range_rel = 0.5;
+  ps[3].radius = 0;  // one tap: the map itself
+  for (int threads : {1, 3}) {
+    detail::use_threads(threads);
+    for (unsigned seed = 31; seed <= 34; ++seed) {
+      const int w = 29 + 2 * static_cast<int>(seed % 5), h = 17 + 2 * static_cast<int>(seed % 3);
+      const ImageI16 d = blocky_disp(w, h, seed, 20);
+      for (std::size_t i = 0; i < ps.size(); ++i)
+        ASSERT_EQ(smooth_disparity(d, ps[i]).data, smooth_reference(d, ps[i]).data)
+            << "seed " << seed << " params " << i << " threads " << threads;
+      EXPECT_EQ(smooth_disparity(d, ps[3]).data, d.data);
+    }
+  }
+  detail::use_threads(0);
+  SmoothParams bad;
+  bad.step = 0;
+  EXPECT_THROW(smooth_disparity(ImageI16(4, 4, 16), bad), std::invalid_argument);
+}
+
+// A plane rising 1 px of disparity every 8 columns, painted as 8 px wide constant segments (the
+// segment WTA's staircase), beside a box 30 px nearer: the smoothing brings the staircase to the
+// plane and leaves the depth edge where it was.
+TEST(Densify, SmoothingTurnsAStaircaseIntoTheSlopeAndKeepsDepthEdges) {
+  const int w = 96, h = 24;
+  ImageI16 stairs(w, h), plane(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      plane.at(x, y) = static_cast<std::int16_t>(20 * kDispScale + (x * kDispScale) / 8);
+      stairs.at(x, y) = static_cast<std::int16_t>(20 * kDispScale + (x / 8) * kDispScale + kDispScale / 2 - 1);
+      if (x >= 64) plane.at(x, y) = stairs.at(x, y) = 60 * kDispScale;  // the box
+    }
+  const ImageI16 s = smooth_disparity(stairs, SmoothParams{});
+  double err_before = 0, err_after = 0;
+  int n = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 8; x < 56; ++x, ++n) {
+      err_before += std::abs(stairs.at(x, y) - plane.at(x, y));
+      err_after += std::abs(s.at(x, y) - plane.at(x, y));
+    }
+  EXPECT_LT(err_after, 0.6 * err_before) << "mean |error| before " << err_before / n / 16 << " px, after " << err_after / n / 16;
+  for (int y = 0; y < h; ++y) {
+    EXPECT_EQ(s.at(70, y), 60 * kDispScale);  // the box is untouched
+    EXPECT_LT(s.at(63, y), 30 * kDispScale);  // the plane next to the box does not take the box's disparity
+  }
 }
 
 TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {

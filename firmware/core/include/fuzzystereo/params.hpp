@@ -49,6 +49,15 @@ struct EsrParams {
   double tau = 0.5;   // [bit], eq. (15)
 };
 
+// Bilateral smoothing of the dense map on a sparse tap grid (docs/algorithm.md 6d).
+struct SmoothParams {
+  int radius = 6;             // [px] taps at -radius .. radius in steps of `step`, both axes
+  int step = 6;               // [px]
+  double sigma_space = 8.0;   // [px]
+  double sigma_range = 3.0;      // [px] of disparity, the least range sigma
+  double sigma_range_rel = 0.1;  // range sigma = max(sigma_range, sigma_range_rel * d)
+};
+
 // Densification after ESR (not in the paper, docs/algorithm.md "Densification").
 struct DensifyParams {
   bool enabled = true;
@@ -59,7 +68,10 @@ struct DensifyParams {
   bool occlusion_fill = true;  // holes no right pixel sees take their row's background first (6c)
   int occlusion_dilate = 1;    // [px] a right pixel's hit also covers this many left pixels each side
   int occlusion_max_gap = 64;  // [px] longer runs of holes are left to the median fill
+  bool smooth = true;          // edge-preserving smoothing after the fill (6d)
+  SmoothParams smoothing;
 };
+
 
 struct RuntimeParams {
   int threads = 0;  // 0 = all cores

@@ -179,5 +179,13 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
 // the two estimates bounding the run (the one there is at an image border). filled (optional,
 // pre-sized) receives 1 per filled pixel. Returns the count.
 int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int max_gap, ImageU8* filled);
+// Bilateral smoothing (p.smooth, after the median fill; docs/algorithm.md 6d): every valid pixel
+// becomes the weighted mean of the valid taps (dx, dy) in {-r, -r + step, .., r}^2 (r = radius rounded
+// down to a multiple of step; the image edge replicated), weight = exp(-(dx^2 + dy^2) / 2 sigma_space^2)
+// * exp(-(d_tap - d)^2 / 2 sigma_range^2), both Q12 from tables (range to 4 sigma, 0 beyond), product
+// >> 12; the mean rounded to nearest Q4. Invalid pixels stay invalid and weigh nothing.
+// radius / step <= kMaxSmoothReach (at most 11 x 11 taps: the sums stay int32), else std::invalid_argument.
+inline constexpr int kMaxSmoothReach = 5;
+ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p);
 
 }  // namespace fs

@@ -428,6 +428,7 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
   }
   ImageU8 filled;
   ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale) : d;
+  if (p.smooth) out = smooth_disparity(out, p.smoothing);
   if (changed) {
     *changed = ImageU8(disp.width, disp.height);
     const std::uint8_t* __restrict rm = removed.data.data();

@@ -14,6 +14,11 @@ Before 3, with ``occlusion_fill`` (docs/algorithm.md 6c): a pixel without an est
 the right-reference map sees (xr + round(d_r(xr)) further than ``occlusion_dilate`` px from it) is
 occluded in the right image; in a run of holes along its row of at most ``occlusion_max_gap`` px it
 takes the background, the smaller of the two estimates bounding the run (the one there is at a border).
+After 3, with ``smooth`` (docs/algorithm.md 6d): a bilateral filter of the dense map on the sparse
+tap grid {-r, .., r}^2 in steps of ``smooth_step`` (r = ``smooth_radius`` rounded down to a multiple of
+the step, image edges replicated); weights exp(-(dx^2 + dy^2) / 2 sigma_s^2) * (1 - (delta / 2 sigma_r)^2)^2
+(Tukey's biweight, 0 from 2 sigma_r on) with sigma_r = max(``smooth_sigma_range``, ``smooth_sigma_range_rel``
+* d); the firmware in Q12 with delta / 2 sigma_r in 1/128 steps, here in float.
 Float64 px, NaN = invalid.
 """
 
@@ -146,12 +151,35 @@ def occlusion_fill(disp: np.ndarray, disp_right: np.ndarray, dilate: int, max_ga
     return out, filled
 
 
+def smooth_disparity(disp: np.ndarray, radius: int, step: int, sigma_space: float, sigma_range: float,
+                     sigma_range_rel: float = 0.0) -> np.ndarray:
+    """The bilateral smoothing of the module doc; NaN pixels stay NaN and weigh nothing."""
+    r = (radius // step) * step
+    h, w = disp.shape
+    pad = np.pad(disp, r, mode="edge") if r > 0 else disp
+    sigma = np.maximum(sigma_range, sigma_range_rel * np.nan_to_num(disp))
+    num = np.zeros_like(disp, dtype=np.float64)
+    den = np.zeros_like(disp, dtype=np.float64)
+    for oy in range(-r, r + 1, step):
+        for ox in range(-r, r + 1, step):
+            s = pad[r + oy : r + oy + h, r + ox : r + ox + w]
+            u = np.abs(s - disp) / (2.0 * sigma)
+            wr = np.where(u < 1.0, (1.0 - u**2) ** 2, 0.0)  # Tukey's biweight
+            wt = np.exp(-(ox * ox + oy * oy) / (2.0 * sigma_space**2)) * np.nan_to_num(wr)
+            num += wt * np.nan_to_num(s)
+            den += wt
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(np.isnan(disp), np.nan, num / den)
+
+
 def densify(
     disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool, interpolate_max_diff: float = 0.0,
     disp_right: np.ndarray | None = None, occlusion_dilate: int = 1, occlusion_max_gap: int = 64,
+    smooth: tuple[int, int, float, float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(final map, changed: 0 kept, 1 filled, 2 zero or removed as a speckle). The occlusion fill runs
-    when ``disp_right`` (the right-reference WTA map) is given."""
+    when ``disp_right`` (the right-reference WTA map) is given, the smoothing when ``smooth`` is.
+    ``changed`` marks the fill only: smoothing moves almost every pixel by a fraction of a pixel."""
     if not enabled:
         return disp.copy(), np.zeros(disp.shape, dtype=np.uint8)
     zero = disp == 0
@@ -161,6 +189,8 @@ def densify(
     if disp_right is not None:
         d, occ = occlusion_fill(d, disp_right, occlusion_dilate, occlusion_max_gap)
     out, filled = median_fill(d, interpolate_max_diff) if fill else (d, np.zeros(d.shape, dtype=bool))
+    if smooth is not None:  # (radius, step, sigma_space, sigma_range, sigma_range_rel)
+        out = smooth_disparity(out, *smooth)
     changed = np.where(occ, 1, np.where(zero | removed, 2, np.where(filled, 1, 0))).astype(np.uint8)
     return out, changed
 
@@ -168,4 +198,6 @@ def densify(
 def densify_config(disp: np.ndarray, disp_right: np.ndarray | None, dn) -> tuple[np.ndarray, np.ndarray]:
     """densify with the fields of a ``[densify]`` config section (the occlusion fill when it is on)."""
     return densify(disp, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill, dn.interpolate_max_diff,
-                   disp_right if dn.occlusion_fill else None, dn.occlusion_dilate, dn.occlusion_max_gap)
+                   disp_right if dn.occlusion_fill else None, dn.occlusion_dilate, dn.occlusion_max_gap,
+                   (dn.smooth_radius, dn.smooth_step, dn.smooth_sigma_space, dn.smooth_sigma_range, dn.smooth_sigma_range_rel)
+                   if dn.smooth else None)
