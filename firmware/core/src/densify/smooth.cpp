@@ -23,6 +23,7 @@ constexpr int kMaxDispQ4Table = 1 << 15;  // every non-negative int16 Q4 value
 struct SmoothTables {
   std::vector<int> dx, dy;         // tap offsets (row-major: taps of one row are consecutive)
   int reach = 0;                   // largest |offset|
+  int centre = 0;                  // index of the tap at offset (0, 0)
   std::vector<std::int32_t> ws;    // space weight per tap, Q12
   std::vector<std::uint32_t> inv;  // per centre value c (Q4): 2^16 * 128 / (2 sigma_q4(c))
 };
@@ -43,6 +44,7 @@ SmoothTables make_tables(const SmoothParams& p) {
   t.reach = r;
   for (int oy = -r; oy <= r; oy += p.step)
     for (int ox = -r; ox <= r; ox += p.step) {
+      if (ox == 0 && oy == 0) t.centre = static_cast<int>(t.dx.size());
       t.dy.push_back(oy);
       t.dx.push_back(ox);
       const double q = std::exp(-(ox * ox + oy * oy) / (2.0 * p.sigma_space * p.sigma_space));
@@ -99,12 +101,17 @@ ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p) {
 #pragma omp for schedule(static)
 #endif
     for (int y = 0; y < h; ++y) {
-      std::fill(num.begin(), num.end(), 0);
-      std::fill(den.begin(), den.end(), 0);
       const std::int16_t* c = disp.row(y);
+      // The centre tap (offset 0, delta 0) weighs exactly 1.0 = 4096: summed here, skipped below.
+      for (int x = 0; x < w; ++x) {
+        const bool ok = c[x] != kInvalidDisp;
+        num[std::size_t(x)] = ok ? std::int32_t(c[x]) << kWeightShift : 0;
+        den[std::size_t(x)] = ok ? 1 << kWeightShift : 0;
+      }
       for (int x = 0; x < w; ++x) invc[std::size_t(x)] = t.inv[c[x] < 0 ? 0 : std::size_t(c[x])];
       int row_loaded = -1;
       for (int k = 0; k < taps; ++k) {
+        if (k == t.centre) continue;
         const int sy = std::clamp(y + t.dy[std::size_t(k)], 0, h - 1);
         if (sy != row_loaded) {  // the tap row with its edge pixels replicated reach px each side
           const std::int16_t* src = disp.row(sy);
