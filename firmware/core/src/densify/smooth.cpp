@@ -126,9 +126,10 @@ ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p) {
       std::int16_t* o = out.row(y);
       for (int x = 0; x < w; ++x) {
         if (c[x] == kInvalidDisp) continue;
-        const std::int32_t dn = den[std::size_t(x)];
-        // dn >= the centre tap's weight (space 1.0 x range 1.0 = 4096) > 0: rounded to nearest
-        o[x] = static_cast<std::int16_t>((2 * std::int64_t(num[std::size_t(x)]) + dn) / (2 * std::int64_t(dn)));
+        // dn >= the centre tap's weight (1.0 = 4096) > 0; num >= 0 (valid disparities), so the mean
+        // rounded to nearest is an unsigned 32-bit division: 2 num + dn < 2^32.
+        const auto dn = static_cast<std::uint32_t>(den[std::size_t(x)]);
+        o[x] = static_cast<std::int16_t>((2 * static_cast<std::uint32_t>(num[std::size_t(x)]) + dn) / (2 * dn));
       }
     }
   }
