@@ -426,6 +426,15 @@ TEST(Densify, ConfigSectionReachesTheParams) {
   EXPECT_EQ(p.densify.occlusion_max_gap, 9);
   EXPECT_THROW(parse_matcher_config("[densify]\nocclusion_dilate = 9\n", "t.toml"), ConfigError);
   EXPECT_THROW(parse_matcher_config("[densify]\nocclusion_max_gap = 0\n", "t.toml"), ConfigError);
+  // more than 11 x 11 smoothing taps: both fields named
+  try {
+    parse_matcher_config("[densify]\nsmooth_radius = 36\nsmooth_step = 6\n", "t.toml");
+    ADD_FAILURE() << "6 taps each side accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("densify.smooth_radius"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("densify.smooth_step"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(parse_matcher_config("[densify]\nsmooth_radius = 35\nsmooth_step = 7\n", "t.toml"));
   EXPECT_FALSE(p.densify.enabled);
   EXPECT_EQ(p.densify.speckle_max_size, 7);
   EXPECT_EQ(p.densify.interpolate_max_diff, 3);
