@@ -83,8 +83,9 @@ void smooth_tap(const std::int16_t* __restrict c, const std::uint32_t* __restric
 
 }  // namespace
 
-// Bounds: weights <= 4096 * 4096 >> 12 = 4096 per tap and at most kMaxSmoothTaps = 121 taps:
-// den <= 2^19; num = sum w * d with a valid d < 2^12 (Q4 of a disparity < 256) < 2^31: int32.
+// Bounds: weights <= 4096 * 4096 >> 12 = 4096 per tap and at most (2 kMaxSmoothReach + 1)^2 = 121
+// taps: den <= 121 * 2^12 < 2^19; num = sum w * d with a valid d < 2^12 (Q4 of a disparity below
+// the largest search range, 256 px) < 121 * 2^24 < 2^31: int32.
 ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p) {
   const SmoothTables t = make_tables(p);
   const int w = disp.width, h = disp.height;
