@@ -224,8 +224,9 @@ void progress(std::size_t i, std::size_t n, const std::string& what) {
 // says so ("esr"; a cache without it predates the file and holds ESR maps too). With [detect] input =
 // "dense", the densify stage is applied to the map after reading: densify() is a pure function of the ESR
 // map, the right-reference WTA map (its occlusion fill; cached beside the ESR map as NNNNNN_10_right.png
-// when the dense input needs it) and [densify], exactly what the matcher runs (matcher.cpp), so the result
-// is bit-identical to the matcher's disp_final, and one cache serves every [densify] setting. The recorded matcher config therefore
+// when the dense input needs it) and [densify], exactly what the matcher runs (matcher.cpp), so the
+// result is bit-identical to the matcher's disp_final, and one cache serves every [densify] setting.
+// The recorded matcher config therefore
 // carries [densify] at its defaults with enabled = false (the settings the ESR maps are independent of).
 constexpr const char* kCacheMap = "esr";
 

@@ -290,7 +290,8 @@ std::string config_to_toml(const MatcherParams& p) {
     << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
     << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
     << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff
-    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false") << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap
+    << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false")
+    << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap
     << "\nsmooth = " << (p.densify.smooth ? "true" : "false") << "\nsmooth_radius = " << p.densify.smoothing.radius
     << "\nsmooth_step = " << p.densify.smoothing.step << "\nsmooth_sigma_space = " << fmt_num(p.densify.smoothing.sigma_space)
     << (p.densify.smoothing.sigma_space == std::floor(p.densify.smoothing.sigma_space) ? ".0" : "")

@@ -51,9 +51,9 @@ struct EsrParams {
 
 // Bilateral smoothing of the dense map on a sparse tap grid (docs/algorithm.md 6d).
 struct SmoothParams {
-  int radius = 6;             // [px] taps at -radius .. radius in steps of `step`, both axes
-  int step = 6;               // [px]
-  double sigma_space = 8.0;   // [px]
+  int radius = 6;                // [px] taps at -radius .. radius in steps of `step`, both axes
+  int step = 6;                  // [px]
+  double sigma_space = 8.0;      // [px]
   double sigma_range = 3.0;      // [px] of disparity, the least range sigma
   double sigma_range_rel = 0.1;  // range sigma = max(sigma_range, sigma_range_rel * d)
 };
@@ -71,7 +71,6 @@ struct DensifyParams {
   bool smooth = true;          // edge-preserving smoothing after the fill (6d)
   SmoothParams smoothing;
 };
-
 
 struct RuntimeParams {
   int threads = 0;  // 0 = all cores

@@ -182,8 +182,9 @@ int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int m
 // Bilateral smoothing (p.smooth, after the median fill; docs/algorithm.md 6d): every valid pixel
 // becomes the weighted mean of the valid taps (dx, dy) in {-r, -r + step, .., r}^2 (r = radius rounded
 // down to a multiple of step; the image edge replicated), weight = exp(-(dx^2 + dy^2) / 2 sigma_space^2)
-// * exp(-(d_tap - d)^2 / 2 sigma_range^2), both Q12 from tables (range to 4 sigma, 0 beyond), product
-// >> 12; the mean rounded to nearest Q4. Invalid pixels stay invalid and weigh nothing.
+// * (1 - (|d_tap - d| / 2 s)^2)^2 (Tukey's biweight, 0 from 2 s on; s = max(sigma_range,
+// sigma_range_rel * d)), both Q12, product >> 12; the mean rounded to nearest Q4. Invalid pixels stay
+// invalid and weigh nothing.
 // radius / step <= kMaxSmoothReach (at most 11 x 11 taps: the sums stay int32), else std::invalid_argument.
 inline constexpr int kMaxSmoothReach = 5;
 ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p);

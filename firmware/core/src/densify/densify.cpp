@@ -421,10 +421,10 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
   if (p.occlusion_fill && !disp_right)
     throw std::invalid_argument("densify: occlusion_fill needs the right-reference map (disp_right)");
   remove_speckles(d, p.speckle_max_size, p.speckle_max_diff * kDispScale, &removed);
-  ImageU8 occ_filled;
+  ImageU8 occ_filled;  // only for `changed`
   if (p.occlusion_fill) {
-    occ_filled = ImageU8(disp.width, disp.height, 0);
-    occlusion_fill(d, *disp_right, p.occlusion_dilate, p.occlusion_max_gap, &occ_filled);
+    if (changed) occ_filled = ImageU8(disp.width, disp.height, 0);
+    occlusion_fill(d, *disp_right, p.occlusion_dilate, p.occlusion_max_gap, changed ? &occ_filled : nullptr);
   }
   ImageU8 filled;
   ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale) : d;
@@ -435,13 +435,12 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
     const std::uint8_t* __restrict fl = p.fill ? filled.data.data() : rm;  // not read unless p.fill
     std::uint8_t* __restrict ch = changed->data.data();
     const bool fill = p.fill;
+    const bool occ = !occ_filled.empty();
+    const std::uint8_t* __restrict oc = occ ? occ_filled.data.data() : rm;  // not read unless occ
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for simd schedule(static)
 #endif
-    for (std::ptrdiff_t i = 0; i < n; ++i) ch[i] = rm[i] ? 2 : ((fill && fl[i]) ? 1 : 0);
-    if (!occ_filled.empty())
-      for (std::ptrdiff_t i = 0; i < n; ++i)
-        if (occ_filled.data[std::size_t(i)]) ch[i] = 1;
+    for (std::ptrdiff_t i = 0; i < n; ++i) ch[i] = (occ && oc[i]) ? 1 : (rm[i] ? 2 : ((fill && fl[i]) ? 1 : 0));
   }
   return out;
 }

@@ -18,7 +18,9 @@ namespace fs {
 namespace {
 
 constexpr int kWeightShift = 12;  // weights Q12: 1.0 = 4096
-constexpr int kMaxDispQ4Table = 1 << 15;  // every non-negative int16 Q4 value
+// Range sigmas are tabled for centre values below 256 px (Q4 4096): the largest search range
+// (`cost.max_disparity` <= 256) keeps every disparity below it; a larger value would use the last entry.
+constexpr int kMaxDispQ4Table = 256 * kDispScale;
 
 struct SmoothTables {
   std::vector<int> dx, dy;         // tap offsets (row-major: taps of one row are consecutive)
@@ -109,7 +111,7 @@ ImageI16 smooth_disparity(const ImageI16& disp, const SmoothParams& p) {
         num[std::size_t(x)] = ok ? std::int32_t(c[x]) << kWeightShift : 0;
         den[std::size_t(x)] = ok ? 1 << kWeightShift : 0;
       }
-      for (int x = 0; x < w; ++x) invc[std::size_t(x)] = t.inv[c[x] < 0 ? 0 : std::size_t(c[x])];
+      for (int x = 0; x < w; ++x) invc[std::size_t(x)] = t.inv[std::size_t(std::clamp<int>(c[x], 0, kMaxDispQ4Table - 1))];
       int row_loaded = -1;
       for (int k = 0; k < taps; ++k) {
         if (k == t.centre) continue;
