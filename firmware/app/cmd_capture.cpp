@@ -82,7 +82,11 @@ void run_capture(const CaptureOptions& o) {
   }
   cam->stop();
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (rect.calib().valid()) write_rectified_calib((out / "calib.yml").string(), rect.calib(), size);
+  if (rect.calib().valid()) {
+    write_rectified_calib((out / "calib.yml").string(), rect.calib(), size);
+  } else if (const auto dc = cam->device_calibration()) {  // rectified on the device (oakd)
+    write_rectified_calib((out / "calib.yml").string(), *dc, size);
+  }
   const capture::CaptureStats st = cam->stats();
   std::printf("captured %d pairs (%dx%d) from %s in %.2f s (%.1f pairs/s, %llu unpaired frames dropped)%s -> %s\n", n,
               size.width, size.height, cam->name().c_str(), s, s > 0 ? n / s : 0.0,
@@ -96,7 +100,7 @@ void add_capture_command(CLI::App& app) {
   auto o = std::make_shared<CaptureOptions>();
   CLI::App* c = app.add_subcommand("capture", "Record (rectified) stereo pairs from a camera source as an image sequence");
   c->add_option("--source", o->source,
-                "replay:DIR | uvc:DEV | uvc:DEV_L,DEV_R | libcamera[:ID_L,ID_R] | oakd (docs/capture.md)")
+                "replay:DIR | uvc:DEV | uvc:DEV_L,DEV_R | libcamera[:ID_L,ID_R] | oakd[:DEVICE] (docs/capture.md)")
       ->required();
   c->add_option("--calib", o->calib, "calibration file (overrides camera.calibration); frames are rectified with it");
   c->add_option("--config", o->config, "TOML config (defaults: common/config/default.toml)");

@@ -337,6 +337,10 @@ LoopResult RobotLoop::run() {
       I.calib = I.rectifier.calib();
     }
     I.camera->start();
+    if (!I.calib.valid()) {
+      // A source that rectifies on the device (oakd) reports the rectified pair's calibration itself.
+      if (const auto dc = I.camera->device_calibration()) I.calib = *dc;
+    }
     if (!I.calib.valid() && opt.source.rfind("replay:", 0) == 0) {
       // A stereo dataset (KITTI, Middlebury) carries its own calibration of the rectified pair.
       try {

@@ -119,8 +119,10 @@ def test_bad_source_strings(firmware_bin, tmp_path):
     out = tmp_path / "o"
     assert_user_error(run(firmware_bin, "capture", "--source", "webcam:0", "--out", str(out)), "unknown kind 'webcam'")
     assert_user_error(run(firmware_bin, "capture", "--source", "uvc:a,b,c", "--count", "1", "--out", str(out)), "got 3")
-    assert_user_error(run(firmware_bin, "capture", "--source", "oakd", "--count", "1", "--out", str(out)),
-                      "not packaged for Debian")
+    cfg = tmp_path / "oakd.toml"
+    cfg.write_text('[camera]\noakd_python = "/nonexistent/python3"\n')
+    assert_user_error(run(firmware_bin, "capture", "--source", "oakd", "--config", str(cfg), "--count", "1",
+                          "--out", str(out)), "camera.oakd_python")
     assert_user_error(run(firmware_bin, "capture", "--source", "uvc:/dev/video_fs_none", "--count", "1", "--out", str(out)),
                       "'/dev/video_fs_none' does not exist")
     assert_user_error(run(firmware_bin, "capture", "--source", "uvc:/dev/video0", "--out", str(out)), "--count N is needed")
@@ -150,3 +152,24 @@ def test_never_overwrites_a_recording(firmware_bin, sequence, tmp_path):
     assert_user_error(run(firmware_bin, "capture", "--source", f"replay:{src}", "--out", str(out)), "already holds images")
     assert (out / "left" / "000000.png").read_bytes() == before
     assert len(read_rows(out / "timestamps.csv")) == 1
+
+
+def test_oakd_capture_through_the_fake_bridge_writes_the_device_calibration(firmware_bin, tmp_path):
+    """`capture --source oakd` with the bridge's simulated twin (camera.oakd_bridge_args = --fake): the
+    pairs arrive through the child process's pipe and the device-reported (pre-rectified) calibration
+    is written as calib.yml, which replay then reads."""
+    cfg = tmp_path / "oakd.toml"
+    cfg.write_text('[camera]\nwidth = 96\nheight = 64\noakd_bridge_args = "--fake --fps 0 --fake-disparity 7"\n')
+    out = tmp_path / "rec"
+    p = run(firmware_bin, "capture", "--source", "oakd", "--config", str(cfg), "--count", "3", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    assert "captured 3 pairs (96x64) from oakd" in p.stdout
+    left = cv2.imread(str(out / "left" / "000002.png"), cv2.IMREAD_GRAYSCALE)
+    right = cv2.imread(str(out / "right" / "000002.png"), cv2.IMREAD_GRAYSCALE)
+    assert np.array_equal(right[:, :89], left[:, 7:])
+    fsr = cv2.FileStorage(str(out / "calib.yml"), cv2.FILE_STORAGE_READ)
+    assert fsr.getNode("rectified").real() == 1
+    assert fsr.getNode("f").real() == 400.0 and abs(fsr.getNode("B").real() - 0.075) < 1e-12
+    p = run(firmware_bin, "capture", "--source", f"replay:{out}", "--calib", str(out / "calib.yml"),
+            "--out", str(tmp_path / "again"))
+    assert p.returncode == 0, p.stderr

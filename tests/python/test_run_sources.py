@@ -24,13 +24,17 @@ def run(binary, *args, timeout=120):
         (["--source", "sim:SCENE", "--motors", "pwm"], "--motors 'pwm' is not valid"),
         (["--source", "replay:/nonexistent/dir", "--goal", "1,0"], "/nonexistent/dir"),
         (["--source", "uvc:/dev/video99", "--goal", "1,0"], "/dev/video99"),
-        (["--source", "oakd", "--goal", "1,0"], "depthai"),
+        (["--source", "oakd", "--goal", "1,0", "--config", "OAKD_NO_PYTHON"], "camera.oakd_python"),
         (["--source", "sim:SCENE", "--link", "pty"], "--state-dir"),
     ],
 )
-def test_bad_run_input_is_one_line_exit_2(firmware_bin, common_dir, args, needle):
+def test_bad_run_input_is_one_line_exit_2(firmware_bin, common_dir, tmp_path, args, needle):
     scene = str(common_dir / "sim" / "scenes" / "demo.toml")
     args = [a.replace("SCENE", scene) for a in args]
+    if "OAKD_NO_PYTHON" in args:
+        cfg = tmp_path / "oakd.toml"
+        cfg.write_text('[camera]\noakd_python = "/nonexistent/python3"\n')
+        args = [str(cfg) if a == "OAKD_NO_PYTHON" else a for a in args]
     p = run(firmware_bin, "run", *args, "--max-frames", "1", "--quiet")
     assert p.returncode == 2, p.stdout + p.stderr
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]

@@ -10,7 +10,7 @@ namespace fs::capture {
 namespace {
 
 const char* kGrammar =
-    "valid sources: replay:DIR | uvc:DEV | uvc:DEV_LEFT,DEV_RIGHT | libcamera | libcamera:ID_LEFT,ID_RIGHT | oakd | "
+    "valid sources: replay:DIR | uvc:DEV | uvc:DEV_LEFT,DEV_RIGHT | libcamera | libcamera:ID_LEFT,ID_RIGHT | oakd | oakd:DEVICE | "
     "sim[:ARGS] (docs/capture.md)";
 
 std::vector<std::string> split_commas(const std::string& s) {
@@ -70,7 +70,10 @@ SourceSpec parse_source(const std::string& text) {
     }
   } else if (kind == "oakd") {
     s.kind = SourceKind::Oakd;
-    if (has_arg) bad(text, "oakd takes no argument");
+    if (has_arg) {
+      if (arg.empty()) bad(text, "oakd: empty device id (oakd:MXID, or oakd for the first device found)");
+      s.devices = {arg};
+    }
   } else if (kind == "sim") {
     s.kind = SourceKind::Sim;
     if (has_arg) s.devices = {arg};
@@ -93,6 +96,9 @@ CameraParams camera_params_from(const fs::ConfigValues& v) {
   p.replay_loop = v.flag("camera.replay_loop");
   p.libcamera_ids = v.str("camera.libcamera_ids");
   p.libcamera_format = v.str("camera.libcamera_format");
+  p.oakd_python = v.str("camera.oakd_python");
+  p.oakd_bridge = v.str("camera.oakd_bridge");
+  p.oakd_bridge_args = v.str("camera.oakd_bridge_args");
   return p;
 }
 
@@ -111,9 +117,7 @@ std::unique_ptr<StereoCamera> open_camera(const SourceSpec& spec, const CameraPa
     }
     case SourceKind::Uvc: return make_uvc_camera(spec, params);
     case SourceKind::Libcamera: return make_libcamera_camera(spec, params);
-    case SourceKind::Oakd:
-      throw CaptureError("oakd: backend not built: depthai (the Luxonis SDK) is not packaged for Debian; "
-                         "use the OAK-D as a UVC device (uvc:/dev/videoN) or record with depthai's own tools and replay:DIR");
+    case SourceKind::Oakd: return make_oakd_camera(spec, params);
     case SourceKind::Sim:
       if (!hooks.sim) throw CaptureError("sim: the simulator backend is not linked into this program");
       return hooks.sim(spec, params);

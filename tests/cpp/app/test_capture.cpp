@@ -3,6 +3,7 @@
 // Rectifier on a synthetic calibrated pair, and the clear errors of every backend.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -93,6 +94,8 @@ TEST(CaptureSource, ParsesEveryKind) {
   s = parse_source("libcamera:/base/a@10,/base/b@10");
   EXPECT_EQ(s.devices.size(), 2u);
   EXPECT_EQ(parse_source("oakd").kind, SourceKind::Oakd);
+  EXPECT_TRUE(parse_source("oakd").devices.empty());
+  EXPECT_EQ(parse_source("oakd:14442C10D13EABCE00").devices, std::vector<std::string>{"14442C10D13EABCE00"});
   EXPECT_EQ(parse_source("sim").kind, SourceKind::Sim);
   EXPECT_EQ(parse_source("sim:corridor").devices, std::vector<std::string>{"corridor"});
 }
@@ -109,7 +112,7 @@ TEST(CaptureSource, MalformedStringsNameTheProblem) {
       {"uvc:/dev/video0,/dev/video0", "same device"},
       {"libcamera:only_one", "two camera ids"},
       {"libcamera:a,a", "same camera"},
-      {"oakd:1", "no argument"},
+      {"oakd:", "empty device id"},
   };
   for (const auto& [text, why] : cases) {
     const std::string e = error_of([&] { parse_source(text); });
@@ -552,9 +555,152 @@ TEST(CaptureLibcamera, NoCamerasGivesTheCountAndWhatToCheck) {
   EXPECT_NE(e2.find("left camera '/base/nope@10' not found"), std::string::npos) << e2;
 }
 
-TEST(CaptureOakd, NotBuiltSaysWhy) {
-  const std::string e = error_of([] { open_camera(parse_source("oakd"), CameraParams{}); });
-  EXPECT_NE(e.find("not packaged for Debian"), std::string::npos) << e;
+// ---- oakd: the bridge child process (firmware/capture/oakd_bridge.py) -------------------------------
+// Its simulated twin (--fake: random-dot pairs, right(x) = left(x + d)) drives the real pipe, framing,
+// hello calibration, sequence gaps, timeout and exit paths; stub `depthai` modules on PYTHONPATH drive
+// the bridge's device errors. Needs python3 on PATH (CI has it); skipped otherwise.
+bool have_python3() { return std::system("python3 -c 'pass' > /dev/null 2>&1") == 0; }
+
+CameraParams fake_oakd(const std::string& extra, int w = 64, int h = 48) {
+  CameraParams p;
+  p.width = w;
+  p.height = h;
+  p.timeout_ms = 5000;
+  p.oakd_bridge_args = "--fake --fps 0 " + extra;
+  return p;
+}
+
+// Sets PYTHONPATH for the bridge child to a folder holding `depthai.py` with `source`; restores it.
+class StubDepthai {
+ public:
+  StubDepthai(const stdfs::path& dir, const std::string& source) {
+    std::ofstream(dir / "depthai.py") << source;
+    if (const char* old = std::getenv("PYTHONPATH")) old_ = old, had_ = true;
+    ::setenv("PYTHONPATH", dir.c_str(), 1);
+  }
+  ~StubDepthai() {
+    if (had_) ::setenv("PYTHONPATH", old_.c_str(), 1);
+    else ::unsetenv("PYTHONPATH");
+  }
+
+ private:
+  std::string old_;
+  bool had_ = false;
+};
+
+TEST(CaptureOakd, FakeBridgeDeliversRectifiedPairsAndItsCalibration) {
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  auto cam = open_camera(parse_source("oakd"), fake_oakd("--fake-disparity 5 --fake-count 4"));
+  EXPECT_FALSE(cam->device_calibration().has_value());  // known only after start()
+  cam->start();
+  const auto calib = cam->device_calibration();
+  ASSERT_TRUE(calib.has_value());
+  EXPECT_DOUBLE_EQ(calib->focal_px, 400.0);
+  EXPECT_DOUBLE_EQ(calib->baseline_m, 0.075);
+  EXPECT_DOUBLE_EQ(calib->cx, 31.5);
+  StereoFrame f;
+  std::int64_t last_t = -1;
+  for (std::uint64_t i = 0; i < 4; ++i) {
+    ASSERT_TRUE(cam->grab(f));
+    ASSERT_EQ(f.left.size(), cv::Size(64, 48));
+    ASSERT_EQ(f.left.type(), CV_8UC1);
+    EXPECT_EQ(f.frame_id, i);
+    EXPECT_GT(f.timestamp_ns, last_t);
+    last_t = f.timestamp_ns;
+    EXPECT_EQ(f.source, "oakd");
+    // The fake pair's disparity: right(x) = left(x + 5); the texture differs elsewhere.
+    EXPECT_EQ(cv::norm(f.right.colRange(0, 59), f.left.colRange(5, 64), cv::NORM_INF), 0.0) << i;
+    EXPECT_GT(cv::norm(f.right, f.left, cv::NORM_L1), 0.0);
+  }
+  EXPECT_EQ(cam->stats().pairs, 4u);
+  EXPECT_EQ(cam->stats().dropped, 0u);
+  // The bridge ends after 4 pairs: an error naming that, not a silent end of stream.
+  const std::string e = error_of([&] { cam->grab(f); });
+  EXPECT_NE(e.find("oakd: the bridge ended while sending a pair"), std::string::npos) << e;
+  cam->stop();
+  cam->stop();  // idempotent
+}
+
+TEST(CaptureOakd, SequenceGapsCountAsDroppedPairs) {
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  auto cam = open_camera(parse_source("oakd"), fake_oakd("--fake-count 5 --fake-drop-at 2 --fake-skew-ns 3000"));
+  cam->start();
+  StereoFrame f;
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(cam->grab(f));
+  EXPECT_EQ(cam->stats().dropped, 1u);
+  EXPECT_EQ(cam->stats().last_offset_ns, -3000);  // t_left - t_right
+  cam->stop();
+}
+
+TEST(CaptureOakd, HungBridgeTimesOutAndStopEndsIt) {
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  CameraParams p = fake_oakd("--fake-stall-after 1");
+  p.timeout_ms = 300;
+  auto cam = open_camera(parse_source("oakd"), p);
+  cam->start();
+  StereoFrame f;
+  ASSERT_TRUE(cam->grab(f));
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string e = error_of([&] { cam->grab(f); });
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_NE(e.find("no data from the bridge for 300 ms"), std::string::npos) << e;
+  EXPECT_GE(waited, 0.29);
+  const auto t1 = std::chrono::steady_clock::now();
+  cam->stop();  // SIGTERM to the sleeping bridge
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count(), 2.5);
+}
+
+TEST(CaptureOakd, ErrorsNameTheInterpreterTheScriptAndTheBridgesReason) {
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  CameraParams p = fake_oakd("");
+  p.oakd_python = "/nonexistent/python3";
+  std::string e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+  EXPECT_NE(e.find("cannot start '/nonexistent/python3'"), std::string::npos) << e;
+  EXPECT_NE(e.find("camera.oakd_python"), std::string::npos) << e;
+  p = fake_oakd("");
+  p.oakd_bridge = "/nonexistent/oakd_bridge.py";
+  e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+  EXPECT_NE(e.find("camera.oakd_bridge = '/nonexistent/oakd_bridge.py' is not a file"), std::string::npos) << e;
+  // The bridge's own argument check (exit 2): its message reaches the user.
+  p = fake_oakd("--fake-disparity 999");
+  e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+  EXPECT_NE(e.find("exit code 2"), std::string::npos) << e;
+  EXPECT_NE(e.find("--fake-disparity 999 outside 0..63"), std::string::npos) << e;
+}
+
+TEST(CaptureOakd, DeviceErrorsFromTheBridge) {
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  TempDir d;
+  CameraParams p;  // the device path: no --fake
+  p.timeout_ms = 5000;
+  {
+    StubDepthai stub(d.path(), "raise ImportError('stub: no depthai here')\n");
+    const std::string e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+    EXPECT_NE(e.find("exit code 3"), std::string::npos) << e;
+    EXPECT_NE(e.find("depthai is not installed"), std::string::npos) << e;
+    EXPECT_NE(e.find("pip install"), std::string::npos) << e;
+  }
+  {
+    StubDepthai stub(d.path(), "__version__ = '2.24.0'\n");
+    const std::string e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+    EXPECT_NE(e.find("depthai 2.24.0 is too old"), std::string::npos) << e;
+  }
+  const std::string v3 =
+      "__version__ = '3.12.0'\n"
+      "class _Info:\n    deviceId = '14442C10D13EABCE00'\n    name = '1.1'\n"
+      "class Device:\n    devices = []\n"
+      "    @staticmethod\n    def getAllAvailableDevices():\n        return Device.devices\n";
+  {
+    StubDepthai stub(d.path(), v3);
+    const std::string e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+    EXPECT_NE(e.find("exit code 4"), std::string::npos) << e;
+    EXPECT_NE(e.find("no OAK device found"), std::string::npos) << e;
+  }
+  {
+    StubDepthai stub(d.path(), v3 + "Device.devices = [_Info()]\n");
+    const std::string e = error_of([&] { open_camera(parse_source("oakd:NOPE"), p)->start(); });
+    EXPECT_NE(e.find("OAK device 'NOPE' not found; available: 14442C10D13EABCE00"), std::string::npos) << e;
+  }
 }
 
 TEST(CaptureSim, WithoutHookSaysNotLinked) {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include <opencv2/core.hpp>
 
 #include "config.hpp"  // fs::ConfigValues (fs_config)
+#include "fuzzystereo/calib.hpp"
 
 namespace fs::capture {
 
@@ -56,6 +58,10 @@ class StereoCamera {
   // "replay:/data/run1", "uvc:/dev/video0", "libcamera:<id>,<id>" ...
   virtual std::string name() const = 0;
   virtual CaptureStats stats() const { return {}; }
+  // The calibration of the rectified pairs as the device itself reports it (the OAK-D rectifies on
+  // the device from its factory calibration), valid after start(); std::nullopt for sources that
+  // deliver unrectified pairs or do not know (then camera.calibration is needed).
+  virtual std::optional<fs::StereoCalib> device_calibration() const { return std::nullopt; }
 };
 
 // [camera] section of the config (common/config/schema.toml documents each field and its range).
@@ -70,6 +76,9 @@ struct CameraParams {
   bool replay_loop = false;
   std::string libcamera_ids;       // "LEFT,RIGHT" or empty
   std::string libcamera_format = "auto";
+  std::string oakd_python = "python3";  // oakd: interpreter with depthai >= 3 that runs the bridge
+  std::string oakd_bridge;              // oakd: oakd_bridge.py path; empty = installed / source copy
+  std::string oakd_bridge_args;         // oakd: extra bridge arguments (tests: "--fake ...")
 };
 CameraParams camera_params_from(const fs::ConfigValues& v);
 
@@ -78,7 +87,8 @@ CameraParams camera_params_from(const fs::ConfigValues& v);
 //   uvc:DEV                    one side-by-side device (left half = left camera), DEV = /dev/videoN or N
 //   uvc:DEV_LEFT,DEV_RIGHT     two devices
 //   libcamera[:ID_LEFT,ID_RIGHT]  two CSI cameras (ids override camera.libcamera_ids)
-//   oakd                       Luxonis OAK-D (not built: depthai is not packaged for Debian)
+//   oakd[:DEVICE]              Luxonis OAK-D (rectified mono pairs through oakd_bridge.py and depthai >= 3;
+//                              DEVICE = its id (MXID) or name, default the first found)
 //   sim[:ARGS]                 the simulator's renderer (provided by the app, see OpenHooks)
 enum class SourceKind { Replay, Uvc, Libcamera, Oakd, Sim };
 struct SourceSpec {
