@@ -249,8 +249,22 @@ def private_stdout() -> BinaryIO:
     return os.fdopen(fd, "wb", buffering=1 << 20)
 
 
+def die_with_parent() -> None:
+    """Linux: SIGTERM this process when the firmware dies (even by SIGKILL), so a bridge blocked in a
+    device read does not outlive it. Best effort: other systems keep the EPIPE exit only."""
+    try:
+        import ctypes  # noqa: PLC0415
+        import signal  # noqa: PLC0415
+        libc = ctypes.CDLL(None, use_errno=True)
+        PR_SET_PDEATHSIG = 1
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
+    die_with_parent()
     out = private_stdout()
     try:
         if args.fake:

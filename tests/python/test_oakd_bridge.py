@@ -8,6 +8,7 @@ import io
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import cv2
@@ -122,3 +123,44 @@ def test_write_calib_is_read_back_by_opencv(tmp_path):
     assert fsr.getNode("image_width").real() == 640
     with pytest.raises(bridge.BridgeError, match="no stereo calibration"):
         bridge.write_calib(str(path), {"f_px": None, "baseline_m": None})
+
+
+def test_bridge_dies_with_its_parent(tmp_path):
+    """A hung bridge (no more pairs, alive, sleeping: its small pairs fit the pipe) ends when the
+    process that started it is killed."""
+    pidfile = tmp_path / "pid"
+    parent = subprocess.Popen([sys.executable, "-c", (
+        "import subprocess, sys, time\n"
+        f"p = subprocess.Popen([sys.executable, {str(BRIDGE)!r}, '--fake', '--fps', '0', '--width', '16', '--height', '16', '--fake-stall-after', '1'],"
+        " stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)\n"
+        f"open({str(pidfile)!r}, 'w').write(str(p.pid))\n"
+        "time.sleep(60)\n")])
+    try:
+        for _ in range(100):
+            if pidfile.exists() and pidfile.read_text():
+                break
+            time.sleep(0.05)
+        child = int(pidfile.read_text())
+        time.sleep(0.3)  # the bridge has started and stalls
+        os.kill(child, 0)  # alive
+        parent.kill()
+        parent.wait()
+        for _ in range(100):
+            try:
+                os.kill(child, 0)
+            except ProcessLookupError:
+                break
+            # a zombie until init reaps it also counts as ended
+            try:
+                with open(f"/proc/{child}/stat") as f:
+                    if f.read().split()[2] == "Z":
+                        break
+            except FileNotFoundError:
+                break
+            time.sleep(0.05)
+        else:
+            os.kill(child, 9)
+            pytest.fail("the bridge outlived its parent")
+    finally:
+        if parent.poll() is None:
+            parent.kill()
