@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <thread>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -561,12 +562,14 @@ TEST(CaptureLibcamera, NoCamerasGivesTheCountAndWhatToCheck) {
 // the bridge's device errors. Needs python3 on PATH (CI has it); skipped otherwise.
 bool have_python3() { return std::system("python3 -c 'pass' > /dev/null 2>&1") == 0; }
 
-CameraParams fake_oakd(const std::string& extra, int w = 64, int h = 48) {
+// fps 20: a pair every 50 ms, slower than the test reads them even on a loaded machine (none
+// replaced unread); 0 = a burst.
+CameraParams fake_oakd(const std::string& extra, double fps = 20.0, int w = 64, int h = 48) {
   CameraParams p;
   p.width = w;
   p.height = h;
   p.timeout_ms = 5000;
-  p.oakd_bridge_args = "--fake --fps 0 " + extra;
+  p.oakd_bridge_args = "--fake --fps " + std::to_string(fps) + " " + extra;
   return p;
 }
 
@@ -617,6 +620,7 @@ TEST(CaptureOakd, FakeBridgeDeliversRectifiedPairsAndItsCalibration) {
   // The bridge ends after 4 pairs: an error naming that, not a silent end of stream.
   const std::string e = error_of([&] { cam->grab(f); });
   EXPECT_NE(e.find("oakd: the bridge ended while sending a pair"), std::string::npos) << e;
+  EXPECT_EQ(error_of([&] { cam->grab(f); }), e);  // the failure stays until start() again
   cam->stop();
   cam->stop();  // idempotent
 }
@@ -632,9 +636,25 @@ TEST(CaptureOakd, SequenceGapsCountAsDroppedPairs) {
   cam->stop();
 }
 
+TEST(CaptureOakd, OnlyTheNewestPairIsDelivered) {
+  // A loop slower than the camera gets the latest pair, never a queue of old ones: a burst of 20
+  // pairs read by the reader thread while nobody grabs leaves one, the other 19 count as dropped.
+  if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
+  auto cam = open_camera(parse_source("oakd"), fake_oakd("--fake-count 20", 0.0));
+  cam->start();
+  for (int i = 0; i < 500 && cam->stats().dropped < 19; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(cam->stats().dropped, 19u);
+  StereoFrame f;
+  ASSERT_TRUE(cam->grab(f));
+  EXPECT_EQ(f.frame_id, 0u);
+  EXPECT_EQ(cam->stats().pairs, 1u);
+  EXPECT_NE(error_of([&] { cam->grab(f); }).find("the bridge ended"), std::string::npos);
+  cam->stop();
+}
+
 TEST(CaptureOakd, HungBridgeTimesOutAndStopEndsIt) {
   if (!have_python3()) GTEST_SKIP() << "python3 not on PATH";
-  CameraParams p = fake_oakd("--fake-stall-after 1");
+  CameraParams p = fake_oakd("--fake-stall-after 1", 0.0);
   p.timeout_ms = 300;
   auto cam = open_camera(parse_source("oakd"), p);
   cam->start();
@@ -643,7 +663,7 @@ TEST(CaptureOakd, HungBridgeTimesOutAndStopEndsIt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string e = error_of([&] { cam->grab(f); });
   const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  EXPECT_NE(e.find("no data from the bridge for 300 ms"), std::string::npos) << e;
+  EXPECT_NE(e.find("no pair from the bridge for 300 ms"), std::string::npos) << e;
   EXPECT_GE(waited, 0.29);
   const auto t1 = std::chrono::steady_clock::now();
   cam->stop();  // SIGTERM to the sleeping bridge
