@@ -559,6 +559,14 @@ LoopResult RobotLoop::run() {
       }
       stage_ms["capture"].push_back(wall_ms_since(s0));
     }
+    // A new frame feeds the watchdog as a new plan does ("no new frame or plan within
+    // [watchdog] timeout_ms"): with plans once per control period (200 ms by default, the watchdog's
+    // default timeout too) a feed on plans alone left gaps of one period plus the processing time's
+    // jitter, and on the wall clock the watchdog stopped the motors between healthy plans on about
+    // every other frame (`run --source replay:` / `oakd`, session 19). Now a healthy loop's gaps are
+    // the processing time (frame -> plan) and the period minus it (plan -> next frame); a stalled
+    // camera or a stalled pipeline still stops the motors timeout_ms after the last frame or plan.
+    feed(clock.now_ns());
 
     // ---- match + refine ----
     auto s1 = std::chrono::steady_clock::now();
@@ -1017,12 +1025,14 @@ LoopResult RobotLoop::run() {
       }
     }
   }
+  // Trips of the loop itself, counted before the teardown: a camera's stop() may take longer than
+  // the timeout (the oakd bridge's exit), and an expiry then is not a stalled pipeline.
+  res.watchdog_trips = sim_wd ? sim_wd->expiries() : (wall_wd ? wall_wd->expiries() : 0);
   I.motors->stop();
   if (I.camera) I.camera->stop();
   res.status = end_status;
   res.time_s = robot::ns_to_s(clock.now_ns() - t0);
   if (!std::isfinite(res.min_clearance_m)) res.min_clearance_m = 0;
-  res.watchdog_trips = sim_wd ? sim_wd->expiries() : (wall_wd ? wall_wd->expiries() : 0);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   res.fps_wall = processing_ms > 0 ? 1000.0 * res.frames / processing_ms : 0.0;
   (void)wall_s;

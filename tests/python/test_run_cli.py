@@ -70,3 +70,33 @@ def test_run_waits_passively_in_openmp_unless_told_otherwise(firmware_bin, commo
             "--max-frames", "3", "--json", str(out), env=env)
     assert p.returncode == 0, p.stderr
     assert json.loads(out.read_text())["omp_wait_policy"] == expected
+
+
+def test_watchdog_does_not_trip_between_healthy_plans_on_the_wall_clock(firmware_bin, tmp_path):
+    """A replayed sequence on the wall clock, 5 Hz control period, [watchdog] timeout_ms = 200 (both
+    defaults): the watchdog must not stop the motors between healthy plans. Before session 19 it was
+    fed on plans only, and a plan-to-plan gap of one period plus the processing time's jitter tripped
+    it on about every other frame (11 trips in 22 frames); a new frame now feeds it too."""
+    import cv2
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    tex = rng.integers(0, 256, size=(120, 200), dtype=np.uint8)
+    for sub in ("left", "right"):
+        (tmp_path / "seq" / sub).mkdir(parents=True)
+    for i in range(4):
+        left = tex[:, i:i + 160]
+        right = tex[:, i + 6:i + 166]  # 6 px of disparity everywhere: a wall 2 m ahead
+        cv2.imwrite(str(tmp_path / "seq" / "left" / f"{i:06d}.png"), left)
+        cv2.imwrite(str(tmp_path / "seq" / "right" / f"{i:06d}.png"), right)
+    (tmp_path / "calib.yml").write_text("%YAML:1.0\n---\nrectified: 1\nf: 120.0\nB: 0.1\ncx: 79.5\ncy: 59.5\n")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'[camera]\ncalibration = "{tmp_path / "calib.yml"}"\nwidth = 160\nheight = 120\n'
+                   "replay_loop = true\nreplay_rate_hz = 30.0\n")
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"replay:{tmp_path / 'seq'}", "--config", str(cfg), "--motors", "sim",
+            "--goal", "3,0", "--quiet", "--max-frames", "12", "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["frames"] == 12
+    assert r["watchdog_trips"] == 0, r
