@@ -387,6 +387,11 @@ LoopResult RobotLoop::run() {
   std::vector<Vec2> last_route;  // the last frame's global path: route commitment ([planner] route_keep_ratio)
   robot::DiffDriveMixer mixer(I.rp);
   robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
+  // Commanded odometry ([robot] odometry_accel_model): the wheels of an acceleration-limited model,
+  // the simulator's motor model, driven by the same commands (only its wheel speeds are read).
+  robot::SimMotors odom_wheels(I.rp);
+  double odom_wl = 0, odom_wr = 0;
+  std::int64_t odom_t_ns = 0;
 
   // Frame period: the planner's control period (the dynamic window assumes it).
   const std::int64_t period_ns = robot::s_to_ns(I.pp.control_period_s);
@@ -909,10 +914,25 @@ LoopResult RobotLoop::run() {
         I.sim_motors->advance_to(now - t0);
         true_pose = I.sim_motors->pose();
       }
-      // Commanded (gpiod: no encoders) or simulated wheel speeds integrate the pose.
-      double vl = 0, vr = 0;
-      robot::wheels_from_twist(applied, I.rp.wheel_base_m, vl, vr);
-      odom.update(vl, vr, robot::ns_to_s(period_ns));
+      // Commanded wheel speeds (gpiod: no encoders; the simulator on the wall clock) integrate the
+      // pose over the period. A step to each command overstates every change: at the default limits
+      // a 1.4 rad/s turn command is reached only after ~0.1 s, and on the wall-clock mission the
+      // stepped odometry ended 0.16 m and 0.05 rad off the true pose (session 19, docs/robot.md).
+      if (I.rp.odometry_accel_model) {
+        odom_wheels.set(wc.left, wc.right);  // duty, as the motors get it
+        for (std::int64_t k = 1; k * kSubStepNs <= period_ns; ++k) {
+          odom_t_ns += kSubStepNs;
+          odom_wheels.advance_to(odom_t_ns);
+          const double wl = odom_wheels.wheel_left_mps(), wr = odom_wheels.wheel_right_mps();
+          odom.update(0.5 * (wl + odom_wl), 0.5 * (wr + odom_wr), robot::ns_to_s(kSubStepNs));
+          odom_wl = wl;
+          odom_wr = wr;
+        }
+      } else {
+        double vl = 0, vr = 0;
+        robot::wheels_from_twist(applied, I.rp.wheel_base_m, vl, vr);
+        odom.update(vl, vr, robot::ns_to_s(period_ns));
+      }
       if (opt.realtime || !is_sim) clock.sleep_until(t_frame + period_ns);
       if (I.world) {
         const double clear =
@@ -934,7 +954,7 @@ LoopResult RobotLoop::run() {
             {"status", held ? "held" : (plan.evading ? "evading" : robot::to_string(plan.status))},
             {"front_stop", ahead},
             {"map_cells", world_map.occupied_count()}};
-    if (I.world) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
+    if (I.world || I.sim_motors) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
     if (!opt.record_dir.empty() && frame % 10 == 0) {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});

@@ -100,3 +100,35 @@ def test_watchdog_does_not_trip_between_healthy_plans_on_the_wall_clock(firmware
     r = json.loads(out.read_text())
     assert r["frames"] == 12
     assert r["watchdog_trips"] == 0, r
+
+
+@pytest.mark.parametrize("model, bound", [(True, 0.01)])
+def test_commanded_odometry_follows_the_wheels_on_the_wall_clock(firmware_bin, tmp_path, model, bound):
+    """Without wheel encoders (the simulator's motors on the wall clock here, gpiod on the robot) the
+    pose comes from the commands. Driving 0.5 m towards a far wall (2 px of disparity, 7 m away) in
+    10 frames: with [robot] odometry_accel_model the odometry ends 2.4-3.3 mm from the simulated
+    motors' true pose; stepping to each command (the model off) ends 22 mm off (it takes every
+    speed-up at once)."""
+    import cv2
+    import numpy as np
+
+    rng = np.random.default_rng(5)
+    tex = rng.integers(0, 256, size=(120, 200), dtype=np.uint8)
+    for sub in ("left", "right"):
+        (tmp_path / "seq" / sub).mkdir(parents=True)
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / "seq" / "left" / f"{i:06d}.png"), tex[:, i:i + 160])
+        cv2.imwrite(str(tmp_path / "seq" / "right" / f"{i:06d}.png"), tex[:, i + 2:i + 162])
+    (tmp_path / "calib.yml").write_text("%YAML:1.0\n---\nrectified: 1\nf: 140.0\nB: 0.1\ncx: 79.5\ncy: 59.5\n")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'[camera]\ncalibration = "{tmp_path / "calib.yml"}"\nwidth = 160\nheight = 120\n'
+                   f"replay_loop = true\nreplay_rate_hz = 30.0\n[robot]\nodometry_accel_model = {str(model).lower()}\n")
+    rec = tmp_path / "rec"
+    p = run(firmware_bin, "run", "--source", f"replay:{tmp_path / 'seq'}", "--config", str(cfg), "--motors", "sim",
+            "--goal", "5,0", "--quiet", "--max-frames", "10", "--record", str(rec), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
+    last = frames[-1]
+    assert last["true_pose"][0] > 0.3, last  # it drove
+    err = ((last["pose"][0] - last["true_pose"][0]) ** 2 + (last["pose"][1] - last["true_pose"][1]) ** 2) ** 0.5
+    assert err < bound, (err, last["pose"], last["true_pose"])

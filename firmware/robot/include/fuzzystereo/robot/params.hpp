@@ -24,6 +24,9 @@ struct RobotParams {
   double goal_tolerance_m = 0.15;     // goal reached when the centre is this close [m]
   double stop_distance_m = 0.05;      // failsafe: free gap in front below which forward motion stops [m]
   bool stop_allows_turning = true;    // failsafe stop still lets the robot turn on the spot
+  bool odometry_accel_model = true;   // commanded odometry (no wheel encoders) integrates the wheels of
+                                      // an acceleration-limited model (max_accel_mps2 per wheel, as the
+                                      // simulator's motors) instead of stepping to each command
 };
 
 // [tracker] — Kalman filter eq. (26)-(32) and track management.
