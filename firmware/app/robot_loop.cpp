@@ -387,11 +387,6 @@ LoopResult RobotLoop::run() {
   std::vector<Vec2> last_route;  // the last frame's global path: route commitment ([planner] route_keep_ratio)
   robot::DiffDriveMixer mixer(I.rp);
   robot::DiffDriveOdometry odom(I.rp.wheel_base_m, start);
-  // Commanded odometry ([robot] odometry_accel_model): the wheels of an acceleration-limited model,
-  // the simulator's motor model, driven by the same commands (only its wheel speeds are read).
-  robot::SimMotors odom_wheels(I.rp);
-  double odom_wl = 0, odom_wr = 0;
-  std::int64_t odom_t_ns = 0;
 
   // Frame period: the planner's control period (the dynamic window assumes it).
   const std::int64_t period_ns = robot::s_to_ns(I.pp.control_period_s);
@@ -402,6 +397,38 @@ LoopResult RobotLoop::run() {
   robot::WallClock wclock;
   robot::Clock& clock = sim_clock ? static_cast<robot::Clock&>(sclock) : static_cast<robot::Clock&>(wclock);
   const std::int64_t t0 = clock.now_ns();
+
+  // Commanded odometry ([robot] odometry_accel_model): the wheels of an acceleration-limited model,
+  // the simulator's motor model, driven by the same commands (only its wheel speeds are read).
+  robot::SimMotors odom_wheels(I.rp);
+  double odom_wl = 0, odom_wr = 0;
+  std::int64_t odom_t_ns = 0;  // since t0
+  // Integrates the model's wheels up to `now` (the wall clock's elapsed time, not a nominal period:
+  // a frame that overruns its period moves the robot longer).
+  // The watchdog's stops reach the model too (the wall watchdog's thread records when it stopped the
+  // motors; a frame overrun by --record's image writing tripped it 5 times in one mission, and the
+  // odometry that went on driving ended 0.27 m off).
+  std::atomic<std::int64_t> wd_stop_ns{-1};
+  auto odom_integrate = [&](std::int64_t t) {  // t since t0
+    while (odom_t_ns < t) {
+      const std::int64_t step = std::min(kSubStepNs, t - odom_t_ns);
+      odom_t_ns += step;
+      odom_wheels.advance_to(odom_t_ns);
+      const double wl = odom_wheels.wheel_left_mps(), wr = odom_wheels.wheel_right_mps();
+      odom.update(0.5 * (wl + odom_wl), 0.5 * (wr + odom_wr), robot::ns_to_s(step));
+      odom_wl = wl;
+      odom_wr = wr;
+    }
+  };
+  auto odom_advance = [&](std::int64_t now_ns) {
+    const std::int64_t stop = wd_stop_ns.exchange(-1);
+    if (stop >= 0) {
+      odom_integrate(std::min(stop, now_ns) - t0);
+      odom_wheels.stop();
+    }
+    odom_integrate(now_ns - t0);
+  };
+  const bool odom_model = !sim_clock && I.rp.odometry_accel_model;
 
   // Watchdog: stop the motors when no plan arrives within wp.timeout_ns.
   std::int64_t last_feed_ns = t0, stop_cmd_ns = -1;
@@ -416,8 +443,13 @@ LoopResult RobotLoop::run() {
     });
   } else {
     wall_wd = std::make_unique<robot::WallWatchdog>(I.wp.timeout_ns, [&] {
+      const std::int64_t now = wclock.now_ns();
+      // Simulated motors on the wall clock: the running command lasts until now, then the stop
+      // (they are advanced only at commands; without this the stop also covered the time before it).
+      if (I.sim_motors) I.sim_motors->advance_to(now - t0);
       I.motors->stop();
       wall_stop_ms = wall_ms_since(wall_last_feed);
+      wd_stop_ns = now;  // for the commanded odometry's model
     });
   }
   auto feed = [&](std::int64_t now) {
@@ -587,6 +619,7 @@ LoopResult RobotLoop::run() {
 
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
+    if (odom_model) odom_advance(clock.now_ns());  // where the commands have taken the robot by now
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
     scan.t_ns = t_frame - t0;  // the tracker's time base
@@ -906,28 +939,23 @@ LoopResult RobotLoop::run() {
         break;
       }
     } else {
-      I.motors->set(wc.left, wc.right);
-      applied = wc.twist;
-      feed(clock.now_ns());
+      const std::int64_t cmd_ns = clock.now_ns();
+      // Simulated motors: the previous command has run until now, then this one takes over (before
+      // session 19 the motors were advanced after set(), so each command also drove the past period).
       if (I.sim_motors) {
-        const std::int64_t now = clock.now_ns();
-        I.sim_motors->advance_to(now - t0);
+        I.sim_motors->advance_to(cmd_ns - t0);
         true_pose = I.sim_motors->pose();
       }
+      I.motors->set(wc.left, wc.right);
+      applied = wc.twist;
+      feed(cmd_ns);
       // Commanded wheel speeds (gpiod: no encoders; the simulator on the wall clock) integrate the
       // pose over the period. A step to each command overstates every change: at the default limits
       // a 1.4 rad/s turn command is reached only after ~0.1 s, and on the wall-clock mission the
       // stepped odometry ended 0.16 m and 0.05 rad off the true pose (session 19, docs/robot.md).
-      if (I.rp.odometry_accel_model) {
+      if (odom_model) {
+        odom_advance(cmd_ns);                // the previous command up to this one
         odom_wheels.set(wc.left, wc.right);  // duty, as the motors get it
-        for (std::int64_t k = 1; k * kSubStepNs <= period_ns; ++k) {
-          odom_t_ns += kSubStepNs;
-          odom_wheels.advance_to(odom_t_ns);
-          const double wl = odom_wheels.wheel_left_mps(), wr = odom_wheels.wheel_right_mps();
-          odom.update(0.5 * (wl + odom_wl), 0.5 * (wr + odom_wr), robot::ns_to_s(kSubStepNs));
-          odom_wl = wl;
-          odom_wr = wr;
-        }
       } else {
         double vl = 0, vr = 0;
         robot::wheels_from_twist(applied, I.rp.wheel_base_m, vl, vr);
