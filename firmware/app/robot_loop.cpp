@@ -574,6 +574,10 @@ LoopResult RobotLoop::run() {
     {
       const auto s0 = std::chrono::steady_clock::now();
       if (I.world) {
+        if (!sim_clock && I.sim_motors) {  // --realtime: the camera sees from where the motors are now
+          I.sim_motors->advance_to(clock.now_ns() - t0);
+          true_pose = I.sim_motors->pose();
+        }
         rr = I.world->render(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, t_s, I.cfg.matcher.runtime.threads);
         gl = rgb_to_gray(rr.left);
         gr = rgb_to_gray(rr.right);
@@ -604,6 +608,9 @@ LoopResult RobotLoop::run() {
     // the processing time (frame -> plan) and the period minus it (plan -> next frame); a stalled
     // camera or a stalled pipeline still stops the motors timeout_ms after the last frame or plan.
     feed(clock.now_ns());
+    // Commanded odometry up to the capture: the frame's detections are placed from the pose the robot
+    // had when it was taken (as on the simulated clock), not after the processing.
+    if (odom_model) odom_advance(clock.now_ns());
 
     // ---- match + refine ----
     auto s1 = std::chrono::steady_clock::now();
@@ -619,7 +626,6 @@ LoopResult RobotLoop::run() {
 
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
-    if (odom_model) odom_advance(clock.now_ns());  // where the commands have taken the robot by now
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
     scan.t_ns = t_frame - t0;  // the tracker's time base
