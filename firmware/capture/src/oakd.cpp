@@ -1,8 +1,9 @@
 // oakd backend: a Luxonis OAK-D's rectified mono pairs through oakd_bridge.py (firmware/capture/),
 // a child process with depthai >= 3 (a PyPI wheel; the C++ SDK is not packaged for Debian) that
 // writes the pairs to a pipe. Stream format: oakd_bridge.py's docstring and docs/formats.md.
-// The device rectifies (StereoDepth, factory calibration), so camera.calibration should hold the
-// pre-rectified calibration that `oakd_bridge.py --write-calib FILE` writes (docs/capture.md).
+// The device rectifies (StereoDepth, factory calibration) and the bridge's hello carries the
+// rectified pair's f, cx, cy and baseline: device_calibration(), used by `run` when
+// camera.calibration is empty and written by `capture` (docs/capture.md).
 //
 // The child's stderr goes to an unlinked temporary file, not a pipe: depthai logs there, and an
 // undrained pipe would block it; the last lines of that file are the error shown when the child
@@ -16,13 +17,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
-#include <mutex>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
