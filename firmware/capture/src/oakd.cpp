@@ -171,6 +171,7 @@ class OakdCamera final : public StereoCamera {
     }
     hello_ = line;
     calib_.reset();
+    device_.clear();
     try {
       const auto j = nlohmann::json::parse(line);
       auto num = [&](const char* k) { return j.contains(k) && j[k].is_number() ? j[k].get<double>() : 0.0; };
@@ -180,6 +181,10 @@ class OakdCamera final : public StereoCamera {
       c.cx = num("cx");
       c.cy = num("cy");
       if (c.valid()) calib_ = c;
+      if (j.contains("device") && j["device"].is_string()) {
+        device_ = j["device"].get<std::string>();
+        if (j.contains("depthai") && j["depthai"].is_string()) device_ += ", depthai " + j["depthai"].get<std::string>();
+      }
     } catch (const nlohmann::json::exception& e) {
       fail(std::string("the bridge's hello is not JSON (") + e.what() + ")");
     }
@@ -237,7 +242,8 @@ class OakdCamera final : public StereoCamera {
     err_fd_ = -1;
   }
 
-  std::string name() const override { return spec_.text; }
+  // "oakd (device 14442C10D13EABCE00, depthai 3.12.0)" once started: which device the log is about.
+  std::string name() const override { return device_.empty() ? spec_.text : spec_.text + " (device " + device_ + ")"; }
   CaptureStats stats() const override {
     std::lock_guard<std::mutex> lock(mu_);
     return stats_;
@@ -373,7 +379,7 @@ class OakdCamera final : public StereoCamera {
   bool reaped_ = false;  // fail() collected the exit status (stop() must not wait for it)
   int fd_ = -1;          // the bridge's stdout
   int err_fd_ = -1;      // its stderr (unlinked temporary file)
-  std::string hello_;
+  std::string hello_, device_;
   std::optional<StereoCalib> calib_;  // from the hello: f, B, cx, cy of the rectified pair
   std::thread reader_;
   std::atomic<bool> stop_{false};

@@ -601,6 +601,7 @@ TEST(CaptureOakd, FakeBridgeDeliversRectifiedPairsAndItsCalibration) {
   EXPECT_DOUBLE_EQ(calib->focal_px, 400.0);
   EXPECT_DOUBLE_EQ(calib->baseline_m, 0.075);
   EXPECT_DOUBLE_EQ(calib->cx, 31.5);
+  EXPECT_EQ(cam->name(), "oakd (device fake)");  // the hello's device id (and depthai version, none here)
   StereoFrame f;
   std::int64_t last_t = -1;
   for (std::uint64_t i = 0; i < 4; ++i) {
