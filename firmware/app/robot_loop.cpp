@@ -956,9 +956,9 @@ LoopResult RobotLoop::run() {
       applied = wc.twist;
       feed(cmd_ns);
       // Commanded wheel speeds (gpiod: no encoders; the simulator on the wall clock) integrate the
-      // pose over the period. A step to each command overstates every change: at the default limits
-      // a 1.4 rad/s turn command is reached only after ~0.1 s, and on the wall-clock mission the
-      // stepped odometry ended 0.16 m and 0.05 rad off the true pose (session 19, docs/robot.md).
+      // pose. A step to each command overstates every change (at the default limits a 1.4 rad/s turn
+      // command is reached only after ~0.1 s): on the wall-clock mission the stepped odometry ended
+      // 0.13-0.88 m off and the robot stopped short of the goal (session 19, docs/robot.md).
       if (odom_model) {
         odom_advance(cmd_ns);                // the previous command up to this one
         odom_wheels.set(wc.left, wc.right);  // duty, as the motors get it
