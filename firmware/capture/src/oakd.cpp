@@ -169,7 +169,6 @@ class OakdCamera final : public StereoCamera {
       line.push_back(c);
       if (line.size() > 4096) fail("the bridge's hello line is longer than 4096 bytes");
     }
-    hello_ = line;
     calib_.reset();
     device_.clear();
     try {
@@ -248,8 +247,6 @@ class OakdCamera final : public StereoCamera {
     std::lock_guard<std::mutex> lock(mu_);
     return stats_;
   }
-  // The bridge's hello JSON (device id, depthai version, rectified f / baseline): for the log.
-  const std::string& hello() const { return hello_; }
 
  private:
   // Reader thread: pair after pair into the one-pair mailbox; the first failure ends it, with the
@@ -379,7 +376,7 @@ class OakdCamera final : public StereoCamera {
   bool reaped_ = false;  // fail() collected the exit status (stop() must not wait for it)
   int fd_ = -1;          // the bridge's stdout
   int err_fd_ = -1;      // its stderr (unlinked temporary file)
-  std::string hello_, device_;
+  std::string device_;  // "ID, depthai VERSION" from the hello (name())
   std::optional<StereoCalib> calib_;  // from the hello: f, B, cx, cy of the rectified pair
   std::thread reader_;
   std::atomic<bool> stop_{false};
