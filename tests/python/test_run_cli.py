@@ -72,29 +72,35 @@ def test_run_waits_passively_in_openmp_unless_told_otherwise(firmware_bin, commo
     assert json.loads(out.read_text())["omp_wait_policy"] == expected
 
 
+def replay_sequence(tmp_path, disparity_px, focal_px, seed, frames, extra_toml=""):
+    """A random-dot wall at `disparity_px` as a replay folder (160 x 120, the texture sliding one px a
+    frame) with its pre-rectified calibration; returns the replay source string and a config that
+    replays it in a loop at 30 Hz on the wall clock."""
+    import cv2
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    tex = rng.integers(0, 256, size=(120, 200), dtype=np.uint8)
+    for sub in ("left", "right"):
+        (tmp_path / "seq" / sub).mkdir(parents=True)
+    for i in range(frames):
+        cv2.imwrite(str(tmp_path / "seq" / "left" / f"{i:06d}.png"), tex[:, i:i + 160])
+        cv2.imwrite(str(tmp_path / "seq" / "right" / f"{i:06d}.png"), tex[:, i + disparity_px:i + disparity_px + 160])
+    (tmp_path / "calib.yml").write_text(f"%YAML:1.0\n---\nrectified: 1\nf: {focal_px}\nB: 0.1\ncx: 79.5\ncy: 59.5\n")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'[camera]\ncalibration = "{tmp_path / "calib.yml"}"\nwidth = 160\nheight = 120\n'
+                   "replay_loop = true\nreplay_rate_hz = 30.0\n" + extra_toml)
+    return f"replay:{tmp_path / 'seq'}", cfg
+
+
 def test_watchdog_does_not_trip_between_healthy_plans_on_the_wall_clock(firmware_bin, tmp_path):
     """A replayed sequence on the wall clock, 5 Hz control period, [watchdog] timeout_ms = 200 (both
     defaults): the watchdog must not stop the motors between healthy plans. Before session 19 it was
     fed on plans only, and a plan-to-plan gap of one period plus the processing time's jitter tripped
     it on about every other frame (11 trips in 22 frames); a new frame now feeds it too."""
-    import cv2
-    import numpy as np
-
-    rng = np.random.default_rng(3)
-    tex = rng.integers(0, 256, size=(120, 200), dtype=np.uint8)
-    for sub in ("left", "right"):
-        (tmp_path / "seq" / sub).mkdir(parents=True)
-    for i in range(4):
-        left = tex[:, i:i + 160]
-        right = tex[:, i + 6:i + 166]  # 6 px of disparity everywhere: a wall 2 m ahead
-        cv2.imwrite(str(tmp_path / "seq" / "left" / f"{i:06d}.png"), left)
-        cv2.imwrite(str(tmp_path / "seq" / "right" / f"{i:06d}.png"), right)
-    (tmp_path / "calib.yml").write_text("%YAML:1.0\n---\nrectified: 1\nf: 120.0\nB: 0.1\ncx: 79.5\ncy: 59.5\n")
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(f'[camera]\ncalibration = "{tmp_path / "calib.yml"}"\nwidth = 160\nheight = 120\n'
-                   "replay_loop = true\nreplay_rate_hz = 30.0\n")
+    source, cfg = replay_sequence(tmp_path, disparity_px=6, focal_px=120.0, seed=3, frames=4)  # a wall 2 m ahead
     out = tmp_path / "r.json"
-    p = run(firmware_bin, "run", "--source", f"replay:{tmp_path / 'seq'}", "--config", str(cfg), "--motors", "sim",
+    p = run(firmware_bin, "run", "--source", source, "--config", str(cfg), "--motors", "sim",
             "--goal", "3,0", "--quiet", "--max-frames", "12", "--json", str(out))
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
@@ -109,22 +115,10 @@ def test_commanded_odometry_follows_the_wheels_on_the_wall_clock(firmware_bin, t
     10 frames: with [robot] odometry_accel_model the odometry ends 2.4-3.3 mm from the simulated
     motors' true pose; stepping to each command (the model off) ends 22 mm off (it takes every
     speed-up at once)."""
-    import cv2
-    import numpy as np
-
-    rng = np.random.default_rng(5)
-    tex = rng.integers(0, 256, size=(120, 200), dtype=np.uint8)
-    for sub in ("left", "right"):
-        (tmp_path / "seq" / sub).mkdir(parents=True)
-    for i in range(3):
-        cv2.imwrite(str(tmp_path / "seq" / "left" / f"{i:06d}.png"), tex[:, i:i + 160])
-        cv2.imwrite(str(tmp_path / "seq" / "right" / f"{i:06d}.png"), tex[:, i + 2:i + 162])
-    (tmp_path / "calib.yml").write_text("%YAML:1.0\n---\nrectified: 1\nf: 140.0\nB: 0.1\ncx: 79.5\ncy: 59.5\n")
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(f'[camera]\ncalibration = "{tmp_path / "calib.yml"}"\nwidth = 160\nheight = 120\n'
-                   f"replay_loop = true\nreplay_rate_hz = 30.0\n[robot]\nodometry_accel_model = {str(model).lower()}\n")
+    source, cfg = replay_sequence(tmp_path, disparity_px=2, focal_px=140.0, seed=5, frames=3,
+                                  extra_toml=f"[robot]\nodometry_accel_model = {str(model).lower()}\n")
     rec = tmp_path / "rec"
-    p = run(firmware_bin, "run", "--source", f"replay:{tmp_path / 'seq'}", "--config", str(cfg), "--motors", "sim",
+    p = run(firmware_bin, "run", "--source", source, "--config", str(cfg), "--motors", "sim",
             "--goal", "5,0", "--quiet", "--max-frames", "10", "--record", str(rec), "--snapshot-every", "0")
     assert p.returncode == 0, p.stderr
     frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]

@@ -11,7 +11,5 @@ std::unique_ptr<StereoCamera> make_uvc_camera(const SourceSpec& spec, const Came
 std::unique_ptr<StereoCamera> make_libcamera_camera(const SourceSpec& spec, const CameraParams& params);
 // oakd.cpp: the OAK-D through the oakd_bridge.py child process.
 std::unique_ptr<StereoCamera> make_oakd_camera(const SourceSpec& spec, const CameraParams& params);
-// The bridge script's path (camera.oakd_bridge, else installed, else the source tree's copy).
-std::string find_oakd_bridge(const CameraParams& params);
 
 }  // namespace fs::capture

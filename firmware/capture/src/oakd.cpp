@@ -62,8 +62,6 @@ std::vector<std::string> split_blanks(const std::string& s) {
   return out;
 }
 
-}  // namespace
-
 // The bridge script: camera.oakd_bridge when set, else next to the installed binary
 // (<prefix>/share/fuzzystereo/oakd_bridge.py), else the source tree's copy.
 std::string find_oakd_bridge(const CameraParams& p) {
@@ -88,6 +86,8 @@ std::string find_oakd_bridge(const CameraParams& p) {
   throw CaptureError("oakd: bridge script oakd_bridge.py not found (looked in: " + list +
                      "); set camera.oakd_bridge to its path");
 }
+
+}  // namespace
 
 class OakdCamera final : public StereoCamera {
  public:
