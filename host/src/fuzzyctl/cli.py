@@ -535,6 +535,58 @@ def _compare_dataset(dataset_dir: Path, tolerances: Path | None, report: Path | 
 # ---- run report -------------------------------------------------------------------------------
 
 
+@app.command("calibrate", short_help="Stereo calibration file from chessboard pairs (OpenCV calib3d).")
+@click.argument("folder", type=click.Path(path_type=Path, file_okay=False, exists=True))
+@click.option("--board", required=True, help="Chessboard INNER corners, COLSxROWS, e.g. 9x6 (unequal sides).")
+@click.option("--square", "square_m", type=float, required=True, help="Square side in METRES, e.g. 0.025.")
+@click.option("--out", type=_path, required=True, help="Calibration file to write (YAML, docs/capture.md).")
+@click.option("--min-pairs", type=click.IntRange(3, 1000), default=8, show_default=True,
+              help="Pairs with the board found in both views needed.")
+@click.option("--max-view-error", type=click.FloatRange(min=0.05), default=None,
+              help="While a view's reprojection error exceeds this [px], drop the worst view and calibrate again.")
+@click.option("--height-m", type=click.FloatRange(min=0.0, max=5.0), default=None,
+              help="Optical centre above the ground [m], written for the detector.")
+@click.option("--pitch-deg", type=click.FloatRange(min=-45.0, max=45.0), default=None,
+              help="Downward camera tilt [deg], written for the detector.")
+@click.option("--preview", type=_path, default=None, help="PNG of one pair rectified with the result, with row lines.")
+@click.option("--max-epipolar", type=click.FloatRange(min=0.0), default=1.0, show_default=True,
+              help="Fail (exit 1, file still written) when the rectified epipolar RMS error exceeds this [px].")
+def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pairs: int, max_view_error: float | None,
+                  height_m: float | None, pitch_deg: float | None, preview: Path | None, max_epipolar: float) -> None:
+    """Calibrate a stereo pair from a `fuzzystereo capture` folder of raw chessboard pairs
+    (FOLDER/left/*, FOLDER/right/*) and write the calibration file `camera.calibration` reads."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    from .calibrate import calibrate_folder, find_pairs, pair_by_name, parse_board, summary_lines, write_calibration, write_preview
+    from .errors import CheckFailed
+
+    b = parse_board(board, square_m)
+    n = len(find_pairs(folder))
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[last]}"),
+                  console=err_console, transient=True) as progress:
+        task = progress.add_task("corners", total=n, last="")
+        cal = calibrate_folder(folder, b, min_pairs=min_pairs, max_view_error=max_view_error,
+                               progress=lambda name: progress.update(task, advance=1, last=name))
+    for name, reason in cal.skipped:
+        console.print(f"skipped {name}: {reason}")
+    if cal.dropped:
+        console.print(f"dropped (error > {max_view_error} px): {', '.join(cal.dropped)}")
+    worst = sorted(cal.views, key=lambda v: -max(v.left_px, v.right_px))[:3]
+    console.print("worst views: " + ", ".join(f"{v.name} {v.left_px:.2f}/{v.right_px:.2f} px" for v in worst))
+    for line in summary_lines(cal):
+        console.print(line)
+    write_calibration(out, cal, height_m=height_m, pitch_deg=pitch_deg)
+    console.print(f"wrote {out}")
+    if preview is not None:
+        write_preview(preview, cal, pair_by_name(folder, cal.views[0].name))
+        console.print(f"wrote {preview}")
+    if cal.epipolar_rms_px > max_epipolar:
+        raise CheckFailed(
+            f"rectified epipolar error {cal.epipolar_rms_px:.3f} px RMS > --max-epipolar {max_epipolar} px: the matcher "
+            "searches along rows and will miss; re-take the pairs (sharp, still, board filling the view, many tilts)"
+        )
+
+
 @app.command("report", short_help="HTML report of a robot run record (fuzzystereo run --record DIR).")
 @click.argument("run_dir", type=click.Path(path_type=Path, file_okay=False))
 @click.option("--out", type=_path, default=None, help="HTML file (default RUN_DIR/report.html).")
