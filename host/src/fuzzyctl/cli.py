@@ -587,6 +587,48 @@ def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pair
         )
 
 
+@app.command("rectcheck", short_help="Is a rectified rig still row-aligned? Feature row differences, no chessboard.")
+@click.argument("folder", type=click.Path(path_type=Path, file_okay=False, exists=True), required=False)
+@click.option("--left", "left_path", type=_existing_file, default=None, help="One rectified left image (with --right).")
+@click.option("--right", "right_path", type=_existing_file, default=None, help="One rectified right image.")
+@click.option("--max-disparity", type=click.FloatRange(min=1.0), default=256.0, show_default=True,
+              help="Matches with a larger disparity are wrong matches.")
+@click.option("--limit", type=click.IntRange(min=0), default=20, show_default=True,
+              help="Pairs used, spread over the folder (0 = all).")
+@click.option("--max-dy", type=click.FloatRange(min=0.0), default=0.5, show_default=True,
+              help="Fail (exit 1) when the median |y_left - y_right| exceeds this [px].")
+def rectcheck_cmd(folder: Path | None, left_path: Path | None, right_path: Path | None, max_disparity: float, limit: int,
+                  max_dy: float) -> None:
+    """Row differences of SIFT matches in rectified pairs (a `fuzzystereo capture --calib` folder, or
+    one pair): a stereo rig whose cameras moved since calibration shows a vertical offset, roll or
+    scale trend. Exit 1 when the median |dy| exceeds --max-dy (then re-calibrate)."""
+    import cv2
+
+    from .errors import CheckFailed
+    from .rectcheck import check_folder, check_pairs
+
+    if (left_path is None) != (right_path is None) or (folder is None) == (left_path is None):
+        raise FatalError("give a capture FOLDER, or --left and --right (one pair)")
+    if folder is not None:
+        r = check_folder(folder, max_disparity=max_disparity, limit=limit)
+    else:
+        imgs = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in (left_path, right_path)]
+        for p, g in zip((left_path, right_path), imgs):
+            if g is None:
+                raise FatalError(f"cannot read image {p}")
+        r = check_pairs([(left_path.name, imgs[0], imgs[1])], max_disparity=max_disparity)
+    for p in r.pairs:
+        console.print(f"{p.name}: {p.matches} matches, |dy| median {p.median_abs_dy:.2f} px")
+    for line in r.lines():
+        console.print(line)
+    if r.median_abs_dy > max_dy:
+        raise CheckFailed(
+            f"median |dy| {r.median_abs_dy:.2f} px > --max-dy {max_dy} px: the rig is no longer rectified "
+            "(re-calibrate: fuzzyctl calibrate, docs/capture.md)"
+        )
+    console.print(f"rectification OK (median |dy| <= {max_dy} px)")
+
+
 @app.command("report", short_help="HTML report of a robot run record (fuzzystereo run --record DIR).")
 @click.argument("run_dir", type=click.Path(path_type=Path, file_okay=False))
 @click.option("--out", type=_path, default=None, help="HTML file (default RUN_DIR/report.html).")
