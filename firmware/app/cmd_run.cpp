@@ -52,13 +52,18 @@ void print_result(const LoopResult& r) {
                 r.watchdog_stop_after_last_plan_ms, r.watchdog_stop_after_deadline_ms);
   if (r.watchdog_stop_wall_ms >= 0)
     std::printf("watchdog (wall clock): stop commanded %.1f ms after the last plan\n", r.watchdog_stop_wall_ms);
+  if (r.perception_stops > 0 || r.perception_fault_frames > 0)
+    std::printf("perception failsafe: %d stop(s), %d faulty frame(s)\n", r.perception_stops, r.perception_fault_frames);
+  if (r.perception_stop_after_ms >= 0)
+    std::printf("perception failsafe: stop commanded %.0f ms after the first blinded frame was captured\n",
+                r.perception_stop_after_ms);
   std::printf("%-8s %9s %9s %9s\n", "stage", "median ms", "p90 ms", "max ms");
   for (const auto& [k, s] : r.stages) std::printf("%-8s %9.1f %9.1f %9.1f\n", k.c_str(), s.median, s.p90, s.max);
 }
 
 struct RunOptions {
-  std::string source, motors = "sim", config, goal, record, json_out;
-  int max_frames = 0, snapshot_every = 10, stall_frame = -1;
+  std::string source, motors = "sim", config, goal, record, json_out, blind_side = "left", blind_mode = "dark";
+  int max_frames = 0, snapshot_every = 10, stall_frame = -1, blind_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
   bool realtime = false, quiet = false;
   // Serial link (docs/protocol.md): device services next to the loop.
@@ -186,6 +191,9 @@ void run_run(const RunOptions& o) {
   lo.snapshot_every = o.snapshot_every;
   lo.stall_frame = o.stall_frame;
   lo.stall_ms = o.stall_ms;
+  lo.blind_frame = o.blind_frame;
+  lo.blind_side = o.blind_side;
+  lo.blind_mode = o.blind_mode;
   lo.sim_latency_ms = o.latency_ms;
   lo.time_limit_s = o.time_limit;
   lo.realtime = lo.realtime || o.realtime;
@@ -424,6 +432,9 @@ void add_run_command(CLI::App& app) {
       ->capture_default_str();
   c->add_option("--stall-frame", o->stall_frame, "Fault injection: the pipeline stalls at this frame");
   c->add_option("--stall-ms", o->stall_ms, "... for this long [ms]");
+  c->add_option("--blind-frame", o->blind_frame, "Fault injection: from this frame on a camera is blind (perception failsafe test)");
+  c->add_option("--blind-side", o->blind_side, "... which camera: left, right or both")->capture_default_str();
+  c->add_option("--blind-mode", o->blind_mode, "... dark (black image) or covered (dark noisy image)")->capture_default_str();
   c->add_flag("--realtime", o->realtime, "Simulator: pace frames on the wall clock");
   c->add_flag("--quiet", o->quiet, "No per-frame line on stderr");
   c->add_option("--json", o->json_out, "Write the result as JSON");

@@ -24,6 +24,7 @@
 #include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/robot/clock.hpp"
 #include "fuzzystereo/robot/failsafe.hpp"
+#include "fuzzystereo/robot/perception_health.hpp"
 #include "fuzzystereo/robot/motors.hpp"
 #include "fuzzystereo/robot/nav_sim.hpp"
 #include "fuzzystereo/robot/obstacle_map.hpp"
@@ -259,12 +260,15 @@ json LoopResult::to_json() const {
          {"static_meas", static_meas},
          {"blocked_frames", blocked_frames},
          {"watchdog_trips", watchdog_trips},
+         {"perception_stops", perception_stops},
+         {"perception_fault_frames", perception_fault_frames},
          {"fps_wall", fps_wall}};
   if (watchdog_stop_after_last_plan_ms >= 0) {
     j["watchdog_stop_after_last_plan_ms"] = watchdog_stop_after_last_plan_ms;
     j["watchdog_stop_after_deadline_ms"] = watchdog_stop_after_deadline_ms;
   }
   if (watchdog_stop_wall_ms >= 0) j["watchdog_stop_wall_ms"] = watchdog_stop_wall_ms;
+  if (perception_stop_after_ms >= 0) j["perception_stop_after_ms"] = perception_stop_after_ms;
   return j;
 }
 
@@ -277,6 +281,7 @@ struct RobotLoop::Impl {
   robot::TrackerParams tp;
   robot::PlannerParams pp;
   robot::WatchdogParams wp;
+  robot::PerceptionHealthParams hp;
   robot::MotorParams mp;
 
   // Camera side: the simulator, or a capture backend + rectifier.
@@ -293,6 +298,7 @@ struct RobotLoop::Impl {
     tp = robot::tracker_params_from(cfg.values);
     pp = robot::planner_params_from(cfg.values);
     wp = robot::watchdog_params_from(cfg.values);
+    hp = robot::perception_params_from(cfg.values);
     mp = robot::motor_params_from(cfg.values);
   }
 };
@@ -523,6 +529,16 @@ LoopResult RobotLoop::run() {
   double processing_ms = 0;
   std::string end_status;
   BodyTwist applied{};
+  // Perception health failsafe (robot::PerceptionMonitor): the frozen-frame test only for live
+  // cameras (the simulator renders a standing robot's view identically; replays may loop).
+  robot::PerceptionMonitor health(I.hp);
+  robot::FrozenCounter frozen_left, frozen_right;
+  const bool live_camera = !is_sim && opt.source.rfind("replay:", 0) != 0;
+  std::int64_t blind_t_ns = -1;  // capture time of the first blinded frame (fault injection)
+  if (opt.blind_frame >= 0 && opt.blind_side != "left" && opt.blind_side != "right" && opt.blind_side != "both")
+    throw UserError("--blind-side must be left, right or both (got '" + opt.blind_side + "')");
+  if (opt.blind_frame >= 0 && opt.blind_mode != "dark" && opt.blind_mode != "covered")
+    throw UserError("--blind-mode must be dark or covered (got '" + opt.blind_mode + "')");
 
   for (int frame = 0;; ++frame) {
     if (opt.max_frames > 0 && frame >= opt.max_frames) {
@@ -607,6 +623,34 @@ LoopResult RobotLoop::run() {
     // every other frame (`run --source replay:` / `oakd`, session 19). Now a healthy loop's gaps are
     // the processing time (frame -> plan) and the period minus it (plan -> next frame); a stalled
     // camera or a stalled pipeline still stops the motors timeout_ms after the last frame or plan.
+    if (opt.blind_frame >= 0 && frame >= opt.blind_frame) {
+      if (blind_t_ns < 0) blind_t_ns = t_frame;
+      std::uint64_t seed = 0x9e3779b97f4a7c15ull ^ std::uint64_t(frame);
+      const auto blind = [&](ImageU8& g) {
+        for (auto& v : g.data) {
+          if (opt.blind_mode == "dark") {
+            v = 0;
+            continue;
+          }
+          // covered: 12 + N(0, 3) from a sum of four uniforms (splitmix64), deterministic per frame
+          double sum = 0;
+          for (int k = 0; k < 4; ++k) {
+            seed += 0x9e3779b97f4a7c15ull;
+            std::uint64_t z = seed;
+            z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+            z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+            sum += double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+          }
+          v = static_cast<std::uint8_t>(std::clamp(std::lround(12.0 + 3.0 * std::sqrt(3.0) * (sum - 2.0)), 0L, 255L));
+        }
+      };
+      if (opt.blind_side != "right") {
+        blind(gl);
+        for (std::size_t i = 0; i < gl.data.size() && i < rgb_left.data.size(); ++i)
+          rgb_left.data[i] = {gl.data[i], gl.data[i], gl.data[i]};
+      }
+      if (opt.blind_side != "left") blind(gr);
+    }
     feed(clock.now_ns());
     // Commanded odometry up to the capture: the frame's detections are placed from the pose the robot
     // had when it was taken (as on the simulated clock), not after the processing.
@@ -617,6 +661,35 @@ LoopResult RobotLoop::run() {
     const MatchResult mr = matcher.match(gl, gr);
     stage_ms["match"].push_back(wall_ms_since(s1));
     if (opt.on_match) opt.on_match(gl, gr, mr);
+    // ---- perception health (robot::PerceptionMonitor) ----
+    bool perception_halt = false, perception_fault = false;
+    {
+      robot::FrameHealth fh;
+      const auto sl = robot::image_stats(gl.data.data(), gl.width, gl.height, std::size_t(gl.width));
+      const auto sr = robot::image_stats(gr.data.data(), gr.width, gr.height, std::size_t(gr.width));
+      fh.contrast_left = sl.stddev;
+      fh.contrast_right = sr.stddev;
+      fh.noise_left = mr.noise_sigma_left;
+      fh.noise_right = mr.noise_sigma_right;
+      if (live_camera) {
+        fh.same_left = frozen_left.update(sl.hash);
+        fh.same_right = frozen_right.update(sr.hash);
+      }
+      std::size_t valid = 0;
+      for (const auto v : mr.disp_esr.data) valid += v != kInvalidDisp;
+      fh.valid_pct = mr.disp_esr.data.empty() ? 0.0 : 100.0 * double(valid) / double(mr.disp_esr.data.size());
+      const int trips_before = health.trips();
+      perception_halt = health.update(fh);
+      perception_fault = !health.fault().empty();
+      if (perception_fault) ++res.perception_fault_frames;
+      if (health.trips() > trips_before) {
+        ++res.perception_stops;
+        if (!opt.quiet) std::fprintf(stderr, "perception failsafe: motors stopped (%s)\n", health.fault().c_str());
+        if (blind_t_ns >= 0 && res.perception_stop_after_ms < 0)
+          res.perception_stop_after_ms =
+              robot::ns_to_s((sim_clock ? t_frame + latency_ns : clock.now_ns()) - blind_t_ns) * 1e3;
+      }
+    }
 
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
@@ -654,7 +727,10 @@ LoopResult RobotLoop::run() {
       }
       meas.resize(keep);
     }
-    world_map.integrate(scan);
+    // A faulty frame (blind or frozen camera) tells nothing: its empty scan would clear map cells
+    // and its missing detections would count as misses of the tracks in view.
+    if (perception_fault) meas.clear();
+    if (!perception_fault) world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
       const Vec2 d = p - pose.pos();
@@ -662,7 +738,7 @@ LoopResult RobotLoop::run() {
       if (r < scan.min_range_m + 0.3 || r > lp.map_range_m) return false;
       return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
     };
-    tracker.step(t_frame - t0, meas, visible);
+    tracker.step(t_frame - t0, meas, [&](Vec2 p) { return !perception_fault && visible(p); });
     if (lp.reach_lost_tracks || lp.look_before_turn_m > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
@@ -873,7 +949,7 @@ LoopResult RobotLoop::run() {
     want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;
     const bool held = opt.hold && opt.hold();
-    if (held) {
+    if (held || perception_halt) {
       want = {};
       mixer.reset();
       I.motors->stop();
@@ -985,10 +1061,11 @@ LoopResult RobotLoop::run() {
             {"pose", {pose.x, pose.y, pose.yaw}},
             {"cmd", {applied.v, applied.omega}},
             {"wheels", {wc.left, wc.right}},
-            {"status", held ? "held" : (plan.evading ? "evading" : robot::to_string(plan.status))},
+            {"status", held ? "held" : perception_halt ? "perception_stop" : (plan.evading ? "evading" : robot::to_string(plan.status))},
             {"front_stop", ahead},
             {"map_cells", world_map.occupied_count()}};
     if (I.world || I.sim_motors) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
+    if (perception_fault) fj["perception"] = health.fault();
     if (!opt.record_dir.empty() && frame % 10 == 0) {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});

@@ -39,6 +39,12 @@ struct LoopOptions {
   // `stall_ms` (sim: simulated time; other sources: a real sleep).
   int stall_frame = -1;
   double stall_ms = 0;
+  // Fault injection (perception health test): from frame `blind_frame` on, the chosen camera's image
+  // is replaced — "dark": all black (no contrast); "covered": a lens under a hand, grey 12 with
+  // sensor noise of std 3 (contrast stays, the views no longer match).
+  int blind_frame = -1;
+  std::string blind_side = "left";   // left | right | both
+  std::string blind_mode = "dark";   // dark | covered
   // Turn once on the spot before driving (sim suite default: the camera sees 74 deg, an obstacle
   // beside the start is unknown otherwise).
   bool look_around = false;
@@ -70,6 +76,9 @@ struct LoopResult {
   int static_meas = 0;      // detections found static ([loop] static_meas_age_s)
   int blocked_frames = 0;   // frames where the planner found no path
   int watchdog_trips = 0;
+  int perception_stops = 0;         // times the perception health failsafe stopped the robot
+  int perception_fault_frames = 0;  // frames that failed a health test (not given to map and tracker)
+  double perception_stop_after_ms = -1;  // blind test: stop command after the blind frame's capture
   double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan
   double watchdog_stop_after_deadline_ms = -1;   // ... after the stall began (the frame that was due)
   double watchdog_stop_wall_ms = -1;             // ... wall-clock watchdog thread (real sleep)

@@ -49,6 +49,65 @@ def test_watchdog_stops_motors_after_a_stall(firmware_bin, common_dir):
     assert re.search(r"watchdog trips [1-9]", p.stdout)
 
 
+@pytest.mark.parametrize("mode, side", [("dark", "left"), ("covered", "right")])
+def test_perception_failsafe_stops_a_blind_robot(firmware_bin, common_dir, tmp_path, mode, side):
+    # From frame 20 one camera is blind: all black ("dark": no contrast) or a lens under a hand
+    # ("covered": grey 12 with sensor noise of std 3, whose only contrast is noise). An empty
+    # disparity map must not read as free space: the motors stop after [perception] trip_frames = 3
+    # faulty frames, the faulty frames reach neither the map nor the tracker, and the robot stays put.
+    mission = f"sim:{common_dir / 'sim/scenes/mission.toml'}"
+    runs = {}
+    for check in ("true", "false"):
+        cfg = tmp_path / f"check_{check}.toml"
+        cfg.write_text(f"[perception]\nhealth_check = {check}\n")
+        rec = tmp_path / f"rec_{check}"
+        p = run(firmware_bin, "run", "--source", mission, "--quiet", "--config", str(cfg), "--blind-frame", "20",
+                "--blind-mode", mode, "--blind-side", side, "--max-frames", "45", "--record", str(rec),
+                "--json", str(tmp_path / f"r_{check}.json"))
+        assert p.returncode == 0, p.stderr
+        frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
+        runs[check] = (json.loads((tmp_path / f"r_{check}.json").read_text()), frames, p.stdout)
+    r, frames, out = runs["true"]
+    assert r["perception_stops"] == 1 and r["perception_fault_frames"] == 25
+    # frames 20, 21, 22 are faulty; the third stops: 2 periods (200 ms) + the simulated latency (100 ms)
+    assert r["perception_stop_after_ms"] == pytest.approx(500, abs=1)
+    assert "stop commanded 500 ms after the first blinded frame" in out
+    assert all("perception" not in f for f in frames[:20])
+    assert all("blind" in f["perception"] and side in f["perception"] for f in frames[20:])
+    assert [f["status"] for f in frames[22:]] == ["perception_stop"] * 23
+    assert all(f["cmd"] == [0.0, 0.0] for f in frames[22:])
+    # after the stop has taken hold, the robot does not move (true pose from the simulator)
+    still = [f["true_pose"] for f in frames[24:]]
+    assert max(abs(a - b) for p0 in still for a, b in zip(p0[:2], still[0][:2])) < 1e-6
+    # the HTML report lists the faulty frames as one span with the first message
+    from fuzzyctl.runreport import perception_fault_spans, write_report
+
+    assert perception_fault_spans(frames) == [(20, 44, frames[20]["perception"])]
+    page = write_report(tmp_path / "rec_true", tmp_path / "report.html").read_text()
+    assert "Perception faults" in page and "<td>20-44</td>" in page
+    # the same run without the failsafe drives on blind: the test can tell the difference
+    r_off, frames_off, _ = runs["false"]
+    assert r_off["perception_stops"] == 0
+    moved = ((frames_off[-1]["true_pose"][0] - frames_off[24]["true_pose"][0]) ** 2
+             + (frames_off[-1]["true_pose"][1] - frames_off[24]["true_pose"][1]) ** 2) ** 0.5
+    assert moved > 0.5
+
+
+def test_perception_failsafe_never_trips_on_the_healthy_mission(firmware_bin, common_dir, tmp_path):
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
+            "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["reached"] and r["perception_fault_frames"] == 0 and r["perception_stops"] == 0
+
+
+def test_bad_blind_option_is_a_clear_error(firmware_bin, common_dir):
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--blind-frame", "1",
+            "--blind-side", "top", "--max-frames", "2")
+    assert p.returncode == 2 and "--blind-side must be left, right or both" in p.stderr
+
+
 def test_bad_goal_is_a_clear_error(firmware_bin, common_dir):
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--goal", "x")
     assert p.returncode == 2

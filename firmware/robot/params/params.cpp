@@ -1,4 +1,4 @@
-// [robot] [tracker] [planner] [watchdog] [motors] -> parameter structs. Ranges and choices were
+// [robot] [tracker] [planner] [watchdog] [perception] [motors] -> parameter structs. Ranges and choices were
 // checked by the config loader (common/config/schema.toml); here only units change.
 #include <cmath>
 
@@ -69,6 +69,17 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
   p.unseen_check_s = v.num("planner.unseen_check_s");
+  return p;
+}
+
+PerceptionHealthParams perception_params_from(const ConfigValues& v) {
+  PerceptionHealthParams p;
+  p.enabled = v.flag("perception.health_check");
+  p.min_contrast = v.num("perception.min_contrast");
+  p.min_valid_pct = v.num("perception.min_valid_pct");
+  p.frozen_frames = v.integer("perception.frozen_frames");
+  p.trip_frames = v.integer("perception.trip_frames");
+  p.clear_frames = v.integer("perception.clear_frames");
   return p;
 }
 

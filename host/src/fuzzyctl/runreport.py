@@ -221,6 +221,12 @@ def write_report(run_dir: Path, out: Path, max_frames: int = 6) -> Path:
     ]
     if frames:
         parts.append(f"<h2>Commands and nearest obstacle</h2><img src='{_fig_png(series_figure(frames))}'>")
+    faults = perception_fault_spans(frames)
+    if faults:
+        frows = "".join(f"<tr><td>{a}-{b}</td><td>{html.escape(msg)}</td></tr>" for a, b, msg in faults)
+        parts.append("<h2>Perception faults</h2><p>Frames the perception failsafe found blind or frozen "
+                     "(kept out of the map and the tracker; the motors stop after <code>[perception] trip_frames</code> in a row).</p>"
+                     f"<table><tr><th>frames</th><th>fault (first frame)</th></tr>{frows}</table>")
     parts.append("<h2>Stage timings</h2><table><tr><th>stage</th><th>median ms</th><th>p90 ms</th><th>max ms</th></tr>" + trows + "</table>")
     if stats:
         parts.append(f"<img src='{_fig_png(timing_figure(run))}'>")
@@ -230,6 +236,21 @@ def write_report(run_dir: Path, out: Path, max_frames: int = 6) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(parts))
     return out
+
+
+def perception_fault_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int, str]]:
+    """Runs of consecutive frames with a perception fault: (first frame, last frame, first message)."""
+    spans: list[tuple[int, int, str]] = []
+    prev = None
+    for f in frames:
+        msg = f.get("perception")
+        n = int(f.get("frame", 0))
+        if msg and spans and prev is not None and n == prev + 1 and spans[-1][1] == prev:
+            spans[-1] = (spans[-1][0], n, spans[-1][2])
+        elif msg:
+            spans.append((n, n, str(msg)))
+        prev = n
+    return spans
 
 
 def _fmt(v: Any) -> str:

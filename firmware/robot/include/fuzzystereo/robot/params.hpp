@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <string>
 
+#include "fuzzystereo/robot/perception_health.hpp"
+
 namespace fs {
 struct ConfigValues;
 }
@@ -117,6 +119,7 @@ RobotParams robot_params_from(const ConfigValues& v);
 TrackerParams tracker_params_from(const ConfigValues& v);
 PlannerParams planner_params_from(const ConfigValues& v);
 WatchdogParams watchdog_params_from(const ConfigValues& v);
+PerceptionHealthParams perception_params_from(const ConfigValues& v);  // [perception]
 MotorParams motor_params_from(const ConfigValues& v);
 
 }  // namespace fs::robot
