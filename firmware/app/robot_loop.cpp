@@ -682,6 +682,8 @@ LoopResult RobotLoop::run() {
       perception_halt = health.update(fh);
       perception_fault = !health.fault().empty();
       if (perception_fault) ++res.perception_fault_frames;
+      if (perception_fault && frame == 0 && !opt.quiet)
+        std::fprintf(stderr, "perception failsafe: not driving until the cameras see (%s)\n", health.fault().c_str());
       if (health.trips() > trips_before) {
         ++res.perception_stops;
         if (!opt.quiet) std::fprintf(stderr, "perception failsafe: motors stopped (%s)\n", health.fault().c_str());

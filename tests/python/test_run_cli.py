@@ -93,6 +93,16 @@ def test_perception_failsafe_stops_a_blind_robot(firmware_bin, common_dir, tmp_p
     assert moved > 0.5
 
 
+def test_robot_with_a_camera_covered_at_start_never_drives(firmware_bin, common_dir, tmp_path):
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--blind-frame", "0",
+            "--blind-mode", "covered", "--max-frames", "10", "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    assert "not driving until the cameras see" in p.stderr
+    r = json.loads(out.read_text())
+    assert r["path_m"] == 0.0 and r["perception_fault_frames"] == 10 and r["perception_stops"] == 0
+
+
 def test_perception_failsafe_never_trips_on_the_healthy_mission(firmware_bin, common_dir, tmp_path):
     out = tmp_path / "r.json"
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",

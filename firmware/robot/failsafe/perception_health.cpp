@@ -61,11 +61,14 @@ bool PerceptionMonitor::update(const FrameHealth& h) {
   if (fault_.empty()) {
     bad_run_ = 0;
     ++good_run_;
-    if (stopped_ && good_run_ >= p_.clear_frames) stopped_ = false;
+    if (stopped_ && good_run_ >= (started_ ? p_.clear_frames : p_.startup_frames)) {
+      stopped_ = false;
+      started_ = true;
+    }
   } else {
     good_run_ = 0;
     ++bad_run_;
-    if (!stopped_ && bad_run_ >= p_.trip_frames) {
+    if (started_ && !stopped_ && bad_run_ >= p_.trip_frames) {
       stopped_ = true;
       ++trips_;
     }

@@ -80,6 +80,7 @@ PerceptionHealthParams perception_params_from(const ConfigValues& v) {
   p.frozen_frames = v.integer("perception.frozen_frames");
   p.trip_frames = v.integer("perception.trip_frames");
   p.clear_frames = v.integer("perception.clear_frames");
+  p.startup_frames = v.integer("perception.startup_frames");
   return p;
 }
 

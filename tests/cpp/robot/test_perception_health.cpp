@@ -103,6 +103,24 @@ TEST(PerceptionHealth, StopsAfterTripFramesAndDrivesAgainAfterClearFrames) {
   EXPECT_EQ(m.trips(), 1);
 }
 
+TEST(PerceptionHealth, StartsStoppedUntilStartupFramesAreHealthy) {
+  PerceptionHealthParams p;
+  p.startup_frames = 2;
+  PerceptionMonitor m(p);
+  FrameHealth blind = healthy();
+  blind.valid_pct = 0.5;
+  EXPECT_FALSE(m.started());
+  for (int i = 0; i < 10; ++i) EXPECT_TRUE(m.update(blind)) << i;  // a camera covered at power-on
+  EXPECT_EQ(m.trips(), 0);  // not a trip: the robot never drove
+  EXPECT_TRUE(m.update(healthy()));
+  EXPECT_FALSE(m.update(healthy()));  // the second healthy frame in a row
+  EXPECT_TRUE(m.started());
+  // from now on the trip / clear rules of a running robot apply
+  for (int i = 0; i < p.trip_frames - 1; ++i) EXPECT_FALSE(m.update(blind));
+  EXPECT_TRUE(m.update(blind));
+  EXPECT_EQ(m.trips(), 1);
+}
+
 TEST(PerceptionHealth, DisabledMonitorNeverStops) {
   PerceptionHealthParams p;
   p.enabled = false;

@@ -16,7 +16,9 @@
 //     sensor noise makes two real frames differ; the simulator and replays repeat frames legally).
 // A frame that fails any test is not given to the map or the tracker (nothing is cleared or
 // forgotten on the strength of a blind frame). After trip_frames faulty frames in a row the motors
-// are stopped and kept stopped until clear_frames healthy frames in a row.
+// are stopped and kept stopped until clear_frames healthy frames in a row. Like a flight
+// controller's pre-arm check, the robot also starts stopped: it drives only after startup_frames
+// healthy frames (a camera covered at power-on never gets a first blind plan).
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -32,6 +34,7 @@ struct PerceptionHealthParams {
   int frozen_frames = 5;        // identical consecutive frames of a live camera = frozen (0 = off)
   int trip_frames = 3;          // faulty frames in a row before the stop
   int clear_frames = 5;         // healthy frames in a row before driving again
+  int startup_frames = 1;       // healthy frames in a row before the first drive
 };
 
 // One frame's measurements.
@@ -60,16 +63,17 @@ std::string perception_fault(const FrameHealth& h, const PerceptionHealthParams&
 // Debounced state: update() once per frame; true while the motors must stay stopped.
 class PerceptionMonitor {
  public:
-  explicit PerceptionMonitor(const PerceptionHealthParams& p) : p_(p) {}
+  explicit PerceptionMonitor(const PerceptionHealthParams& p) : p_(p), stopped_(p.enabled) {}
   bool update(const FrameHealth& h);
   bool stopped() const { return stopped_; }
   const std::string& fault() const { return fault_; }  // this frame's fault ("" = healthy frame)
-  int trips() const { return trips_; }                 // transitions into the stopped state
+  int trips() const { return trips_; }                 // transitions into the stopped state (not the start)
+  bool started() const { return started_; }            // the start-up check has passed
 
  private:
   PerceptionHealthParams p_;
   int bad_run_ = 0, good_run_ = 0, trips_ = 0;
-  bool stopped_ = false;
+  bool stopped_ = false, started_ = false;
   std::string fault_;
 };
 
