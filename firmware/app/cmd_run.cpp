@@ -54,6 +54,9 @@ void print_result(const LoopResult& r) {
     std::printf("watchdog (wall clock): stop commanded %.1f ms after the last plan\n", r.watchdog_stop_wall_ms);
   if (r.perception_stops > 0 || r.perception_fault_frames > 0)
     std::printf("perception failsafe: %d stop(s), %d faulty frame(s)\n", r.perception_stops, r.perception_fault_frames);
+  if (!r.record_warning.empty())
+    std::printf("record incomplete: %s (%d snapshots, %d frame-log lines not written)\n", r.record_warning.c_str(),
+                r.record_dropped_snapshots, r.record_dropped_frames);
   if (r.perception_stop_after_ms >= 0)
     std::printf("perception failsafe: stop commanded %.0f ms after the first blinded frame was captured\n",
                 r.perception_stop_after_ms);
@@ -63,7 +66,7 @@ void print_result(const LoopResult& r) {
 
 struct RunOptions {
   std::string source, motors = "sim", config, goal, record, json_out, blind_side = "left", blind_mode = "dark";
-  int max_frames = 0, snapshot_every = 10, stall_frame = -1, blind_frame = -1;
+  int max_frames = 0, snapshot_every = 10, stall_frame = -1, blind_frame = -1, record_fail_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
   bool realtime = false, quiet = false;
   // Serial link (docs/protocol.md): device services next to the loop.
@@ -194,6 +197,7 @@ void run_run(const RunOptions& o) {
   lo.blind_frame = o.blind_frame;
   lo.blind_side = o.blind_side;
   lo.blind_mode = o.blind_mode;
+  lo.record_fail_frame = o.record_fail_frame;
   lo.sim_latency_ms = o.latency_ms;
   lo.time_limit_s = o.time_limit;
   lo.realtime = lo.realtime || o.realtime;
@@ -435,6 +439,7 @@ void add_run_command(CLI::App& app) {
   c->add_option("--blind-frame", o->blind_frame, "Fault injection: from this frame on a camera is blind (perception failsafe test)");
   c->add_option("--blind-side", o->blind_side, "... which camera: left, right or both")->capture_default_str();
   c->add_option("--blind-mode", o->blind_mode, "... dark (black image) or covered (dark noisy image)")->capture_default_str();
+  c->add_option("--record-fail-frame", o->record_fail_frame, "Fault injection: from this frame on record writes fail (disk full test)");
   c->add_flag("--realtime", o->realtime, "Simulator: pace frames on the wall clock");
   c->add_flag("--quiet", o->quiet, "No per-frame line on stderr");
   c->add_option("--json", o->json_out, "Write the result as JSON");

@@ -1,5 +1,6 @@
 // The robot's main loop; see robot_loop.hpp and docs/robot.md ("The loop").
 #include "robot_loop.hpp"
+#include "run_recorder.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -269,6 +270,11 @@ json LoopResult::to_json() const {
   }
   if (watchdog_stop_wall_ms >= 0) j["watchdog_stop_wall_ms"] = watchdog_stop_wall_ms;
   if (perception_stop_after_ms >= 0) j["perception_stop_after_ms"] = perception_stop_after_ms;
+  if (!record_warning.empty()) {
+    j["record_warning"] = record_warning;
+    j["record_dropped_snapshots"] = record_dropped_snapshots;
+    j["record_dropped_frames"] = record_dropped_frames;
+  }
   return j;
 }
 
@@ -469,12 +475,13 @@ LoopResult RobotLoop::run() {
   feed(t0);
 
   // ---- record ----
-  std::ofstream frames_log;
-  if (!opt.record_dir.empty()) {
-    stdfs::create_directories(stdfs::path(opt.record_dir) / "frames");
-    frames_log.open(stdfs::path(opt.record_dir) / "frames.jsonl");
-    if (!frames_log) throw UserError("cannot write " + opt.record_dir + "/frames.jsonl");
-  }
+  // RunRecorder: a record that cannot be written (disk full, card pulled) stops with a warning;
+  // the mission goes on (run_recorder.hpp).
+  RecordParams recp;
+  recp.min_free_mb = I.cfg.values.num("record.min_free_mb");
+  recp.min_free_log_mb = I.cfg.values.num("record.min_free_log_mb");
+  recp.fail_frame = opt.record_fail_frame;
+  RunRecorder recorder = opt.record_dir.empty() ? RunRecorder() : RunRecorder(opt.record_dir, recp, opt.quiet);
 
   // Static obstacles for the shortest-path reference (sim).
   if (I.world) {
@@ -1112,19 +1119,22 @@ LoopResult RobotLoop::run() {
     json sm;
     for (const auto& [k, v] : stage_ms) sm[k] = v.back();
     fj["stage_ms"] = sm;
-    if (!opt.record_dir.empty()) {
+    if (recorder.enabled()) {
+      recorder.begin_frame(frame);
       if (opt.snapshot_every > 0 && frame % opt.snapshot_every == 0) {
         char stem[32];
         std::snprintf(stem, sizeof stem, "%06d", frame);
         const stdfs::path base = stdfs::path(opt.record_dir) / "frames";
-        write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
-        const cv::Mat dispf = disp_q4_to_float(detection_disparity(mr, det_input));
-        write_image((base / (std::string(stem) + "_disp.png")).string(),
-                    colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
-        fj["snapshot"] = std::string("frames/") + stem;
+        const bool saved = recorder.snapshot([&] {
+          write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
+          const cv::Mat dispf = disp_q4_to_float(detection_disparity(mr, det_input));
+          write_image((base / (std::string(stem) + "_disp.png")).string(),
+                      colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
+          return true;
+        });
+        if (saved) fj["snapshot"] = std::string("frames/") + stem;
       }
-      frames_log << fj.dump() << '\n';
-      frames_log.flush();
+      recorder.log_line(fj.dump());
     }
     if (opt.on_frame) opt.on_frame(fj);
     if (!opt.quiet)
@@ -1172,6 +1182,9 @@ LoopResult RobotLoop::run() {
   for (const char* k : {"capture", "match", "detect", "track", "plan", "total"})
     if (stage_ms.count(k)) res.stages.emplace_back(k, stat_of(stage_ms[k]));
 
+  res.record_dropped_snapshots = recorder.dropped_snapshots();
+  res.record_dropped_frames = recorder.dropped_lines();
+  res.record_warning = recorder.warning();
   if (!opt.record_dir.empty()) {
     json run{{"version", 1}, {"source", opt.source}, {"start", {start.x, start.y, start.yaw}},
              {"goal", {goal.x, goal.y}}, {"robot_radius_m", I.rp.radius_m}, {"result", res.to_json()}};

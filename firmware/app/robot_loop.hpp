@@ -45,6 +45,8 @@ struct LoopOptions {
   int blind_frame = -1;
   std::string blind_side = "left";   // left | right | both
   std::string blind_mode = "dark";   // dark | covered
+  // Fault injection (record test): from this frame on every record write fails, as on a full disk.
+  int record_fail_frame = -1;
   // Turn once on the spot before driving (sim suite default: the camera sees 74 deg, an obstacle
   // beside the start is unknown otherwise).
   bool look_around = false;
@@ -79,6 +81,9 @@ struct LoopResult {
   int perception_stops = 0;         // times the perception health failsafe stopped the robot
   int perception_fault_frames = 0;  // frames that failed a health test (not given to map and tracker)
   double perception_stop_after_ms = -1;  // blind test: stop command after the blind frame's capture
+  int record_dropped_snapshots = 0;  // --record: snapshots not written (disk full, write error)
+  int record_dropped_frames = 0;     // --record: frame-log lines not written
+  std::string record_warning;        // why the record stopped ("" = complete)
   double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan
   double watchdog_stop_after_deadline_ms = -1;   // ... after the stall began (the frame that was due)
   double watchdog_stop_wall_ms = -1;             // ... wall-clock watchdog thread (real sleep)

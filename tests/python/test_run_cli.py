@@ -118,6 +118,46 @@ def test_bad_blind_option_is_a_clear_error(firmware_bin, common_dir):
     assert p.returncode == 2 and "--blind-side must be left, right or both" in p.stderr
 
 
+def test_a_failing_record_does_not_end_the_mission(firmware_bin, common_dir, tmp_path):
+    # A full disk mid-run (injected: from frame 5 every record write fails): one warning, the record
+    # stops, the robot still reaches its goal. Before session 20 the first failed snapshot threw and
+    # ended the run.
+    rec, out = tmp_path / "rec", tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
+            "--record", str(rec), "--snapshot-every", "2", "--record-fail-frame", "5", "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["reached"] and not r["collided"]
+    assert r["record_warning"] == "record: frame log stopped at frame 5 (injected write failure); the run goes on"
+    assert r["record_dropped_frames"] == r["frames"] - 5
+    assert r["record_dropped_snapshots"] == len(range(6, r["frames"], 2))
+    assert p.stderr.count("record: ") == 1 and "record incomplete" in p.stdout
+    lines = (rec / "frames.jsonl").read_text().splitlines()
+    assert [json.loads(x)["frame"] for x in lines] == [0, 1, 2, 3, 4]
+    assert sorted(f.name for f in (rec / "frames").glob("*_overlay.png")) == ["000000_overlay.png", "000002_overlay.png",
+                                                                              "000004_overlay.png"]
+
+
+@pytest.mark.parametrize("limits, snapshots, log_lines", [("min_free_mb = 1e6", 0, 12),
+                                                          ("min_free_mb = 1e6\nmin_free_log_mb = 1e6", 0, 0),
+                                                          ("min_free_mb = 0.0", 2, 12)])
+def test_record_stops_below_its_free_space_limits(firmware_bin, common_dir, tmp_path, limits, snapshots, log_lines):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f"[record]\n{limits}\n")
+    rec = tmp_path / "rec"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet", "--config",
+            str(cfg), "--record", str(rec), "--max-frames", "12", "--json", str(tmp_path / "r.json"))
+    assert p.returncode == 0, p.stderr
+    assert len(list((rec / "frames").glob("*_overlay.png"))) == snapshots
+    assert len((rec / "frames.jsonl").read_text().splitlines()) == log_lines
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert r["frames"] == 12
+    if snapshots == 0:
+        assert "MiB free < [record] min_free_mb" in r["record_warning"]
+    else:
+        assert "record_warning" not in r
+
+
 def test_bad_goal_is_a_clear_error(firmware_bin, common_dir):
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--goal", "x")
     assert p.returncode == 2

@@ -35,9 +35,19 @@ std::string perception_fault(const FrameHealth& h, const PerceptionHealthParams&
     std::snprintf(buf, sizeof buf, "%s camera blind: contrast %.1f < %g grey levels", side, c, p.min_contrast);
     return std::string(buf);
   };
-  const double cl = signal_contrast(h.contrast_left, h.noise_left), cr = signal_contrast(h.contrast_right, h.noise_right);
-  if (cl < p.min_contrast) return blind("left", cl);
-  if (cr < p.min_contrast) return blind("right", cr);
+  if (h.contrast_left < p.min_contrast) return blind("left", h.contrast_left);
+  if (h.contrast_right < p.min_contrast) return blind("right", h.contrast_right);
+  const auto noise_only = [&](const char* side, double c, double n) {
+    std::snprintf(buf, sizeof buf,
+                  "%s camera blind: only noise (contrast %.1f, noise %.1f grey levels) and %.1f %% of the pixels match (< %g %%)",
+                  side, c, n, h.valid_pct, p.noise_only_valid_pct);
+    return std::string(buf);
+  };
+  if (h.valid_pct < p.noise_only_valid_pct) {
+    if (signal_contrast(h.contrast_left, h.noise_left) < p.min_contrast) return noise_only("left", h.contrast_left, h.noise_left);
+    if (signal_contrast(h.contrast_right, h.noise_right) < p.min_contrast)
+      return noise_only("right", h.contrast_right, h.noise_right);
+  }
   if (p.frozen_frames > 0 && (h.same_left >= p.frozen_frames || h.same_right >= p.frozen_frames)) {
     const bool left = h.same_left >= p.frozen_frames;
     std::snprintf(buf, sizeof buf, "%s camera frozen: %d identical frames in a row", left ? "left" : "right",

@@ -77,6 +77,7 @@ PerceptionHealthParams perception_params_from(const ConfigValues& v) {
   p.enabled = v.flag("perception.health_check");
   p.min_contrast = v.num("perception.min_contrast");
   p.min_valid_pct = v.num("perception.min_valid_pct");
+  p.noise_only_valid_pct = v.num("perception.noise_only_valid_pct");
   p.frozen_frames = v.integer("perception.frozen_frames");
   p.trip_frames = v.integer("perception.trip_frames");
   p.clear_frames = v.integer("perception.clear_frames");

@@ -58,11 +58,21 @@ TEST(PerceptionHealth, EachTestNamesTheCameraAndTheLimit) {
   h.noise_right = 0.0;
   EXPECT_EQ(perception_fault(h, p), "right camera blind: contrast 0.3 < 2 grey levels");
   // a covered lens: all its variance is sensor noise (measured in the simulator: std 3.0, noise 2.97)
+  // and the views match only by chance (8.7 %)
   h = healthy();
   h.contrast_left = 3.0;
   h.noise_left = 2.97;
-  EXPECT_NE(perception_fault(h, p).find("left camera blind"), std::string::npos);
-  h.noise_left = 0.0;  // without a noise estimate the same image passes the contrast test ...
+  h.valid_pct = 8.7;
+  EXPECT_EQ(perception_fault(h, p),
+            "left camera blind: only noise (contrast 3.0, noise 3.0 grey levels) and 8.7 % of the pixels match (< 20 %)");
+  // a noise-like texture (random dots: std 74, "noise" 74) that the other view matches is a scene
+  h.contrast_left = h.noise_left = 74.0;
+  h.valid_pct = 80.0;
+  EXPECT_EQ(perception_fault(h, p), "");
+  h = healthy();
+  h.contrast_left = 3.0;
+  h.noise_left = 0.0;  // without a noise estimate the covered lens passes the contrast tests ...
+  h.valid_pct = 8.7;
   EXPECT_EQ(perception_fault(h, p), "");
   h.valid_pct = 1.5;   // ... and the views' mismatch is the backstop
   EXPECT_EQ(perception_fault(h, p), "views do not match: 1.5 % of the pixels have a disparity (< 2 %)");

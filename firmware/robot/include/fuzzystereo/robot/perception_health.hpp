@@ -5,13 +5,16 @@
 // a disparity map with nothing in it, and an empty map looks exactly like free space: the planner
 // would drive on, and the map would even clear the cells it "sees through". Per frame, the loop
 // measures (docs/robot.md "Failsafes"):
-//   * contrast: the grey-level standard deviation of each image (every 4th pixel of every 4th row)
-//     without its noise, sqrt(max(0, std^2 - noise^2)) with the matcher's noise estimate (Immerkaer,
-//     docs/algorithm.md 2c): a black or saturated image has no contrast at all, and a lens under a
-//     hand keeps only its sensor noise (measured: std 3.0, noise 2.97 -> contrast 0.4), while a
-//     scene has tens of grey levels;
-//   * valid %: the share of pixels with a disparity after ESR, a backstop (a covered lens still left
-//     8.7 % of the pixels consistent by chance in the simulator, a scene 30-60 %);
+//   * contrast: the grey-level standard deviation of each image (every 4th pixel of every 4th row):
+//     a black, saturated or flat image has almost none;
+//   * noise only: the same without its noise, sqrt(max(0, std^2 - noise^2)) with the matcher's noise
+//     estimate (Immerkaer, docs/algorithm.md 2c). A lens under a hand keeps only its sensor noise
+//     (measured: std 3.0, noise 2.97 -> 0.4). A single image cannot tell noise from a noise-like
+//     texture (a random-dot pattern reads std 74, "noise" 74), so a noise-only camera is a fault
+//     only when the views do not match either: fewer than noise_only_valid_pct of the pixels with a
+//     disparity (the covered lens: 8.7 % consistent by chance; the random-dot pair: most of them);
+//   * valid %: the share of pixels with a disparity after ESR, below min_valid_pct on its own (a
+//     scene in the simulator: 30-60 %);
 //   * frozen: how many consecutive frames of one camera were identical (live cameras only: their
 //     sensor noise makes two real frames differ; the simulator and replays repeat frames legally).
 // A frame that fails any test is not given to the map or the tracker (nothing is cleared or
@@ -31,6 +34,7 @@ struct PerceptionHealthParams {
   bool enabled = true;          // health_check
   double min_contrast = 2.0;    // grey-level std below which a camera is blind [levels]
   double min_valid_pct = 2.0;   // % of pixels with a disparity below which the pair is blind
+  double noise_only_valid_pct = 20.0;  // ... below which a camera that shows only noise is blind
   int frozen_frames = 5;        // identical consecutive frames of a live camera = frozen (0 = off)
   int trip_frames = 3;          // faulty frames in a row before the stop
   int clear_frames = 5;         // healthy frames in a row before driving again
