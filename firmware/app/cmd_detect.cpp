@@ -114,7 +114,7 @@ void add_detect_command(CLI::App& app) {
   CLI::App* c = app.add_subcommand("detect", "Detect obstacles in one rectified stereo pair (matcher + Section III-B)");
   c->add_option("--left", o->left, "left colour image")->required();
   c->add_option("--right", o->right, "right image (not needed with --disparity)");
-  c->add_option("--calib", o->calib, "calibration: JSON/TOML (focal_px, baseline_m, cx, cy) or KITTI calib_cam_to_cam.txt");
+  c->add_option("--calib", o->calib, "calibration: JSON/TOML (focal_px, baseline_m, cx, cy), KITTI calib_cam_to_cam.txt, or the robot's OpenCV YAML (capture's calib.yml, docs/capture.md; images already rectified)");
   c->add_option("--config", o->config, "TOML config (defaults: common/config/default.toml)");
   c->add_option("--out", o->out, "output directory")->required();
   c->add_option("--disparity", o->disparity, "KITTI 16-bit disparity PNG to use instead of the matcher (oracle mode)");

@@ -17,5 +17,6 @@ void add_capture_command(CLI::App& app);  // cmd_capture.cpp
 void add_run_command(CLI::App& app);      // cmd_run.cpp
 void add_sim_suite_command(CLI::App& sim);  // cmd_run.cpp, under `sim`
 void add_serve_command(CLI::App& app);  // cmd_serve.cpp
+void add_motors_command(CLI::App& app);  // cmd_motors.cpp
 
 }  // namespace fs::app

@@ -1,5 +1,7 @@
 #include "detect_io.hpp"
 
+#include "fuzzystereo/capture/rectifier.hpp"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -71,6 +73,16 @@ StereoCalib calib_from_json(const nlohmann::json& root, const std::string& sourc
 StereoCalib load_stereo_calib(const std::string& path) {
   const std::string text = read_text(path);
   const std::string ext = std::filesystem::path(path).extension().string();
+  // The robot's own calibration file (OpenCV FileStorage: `capture`'s calib.yml, `fuzzyctl
+  // calibrate`'s stereo.yml; docs/capture.md): the calibration of the rectified pair, read and
+  // checked by the Rectifier (the images given to detect must already be rectified).
+  if (ext == ".yml" || ext == ".yaml" || ext == ".xml" || text.rfind("%YAML", 0) == 0 || text.rfind("<?xml", 0) == 0) {
+    try {
+      return capture::Rectifier::from_file(path).calib();
+    } catch (const capture::CaptureError& e) {
+      throw UserError(e.what());
+    }
+  }
   if (ext == ".json") {
     nlohmann::json j;
     try {

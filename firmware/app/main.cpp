@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
   fs::app::add_capture_command(app);
   fs::app::add_run_command(app);
   fs::app::add_serve_command(app);
+  fs::app::add_motors_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

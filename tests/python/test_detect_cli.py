@@ -133,7 +133,7 @@ def test_detect_mono_skips_sky(firmware_bin, dataset, tmp_path):
     assert len(out["obstacles"]) == 2
 
 
-@pytest.mark.parametrize("kind", ["toml", "kitti", "json_flat"])
+@pytest.mark.parametrize("kind", ["toml", "kitti", "json_flat", "opencv_yml"])
 def test_detect_calibration_formats(firmware_bin, dataset, tmp_path, kind):
     f = frame(dataset, 0)
     F, B, CX, CY = detect_synth.F, detect_synth.B, detect_synth.CX, detect_synth.CY
@@ -145,6 +145,9 @@ def test_detect_calibration_formats(firmware_bin, dataset, tmp_path, kind):
         p2 = [F, 0, CX, 0.0, 0, F, CY, 0, 0, 0, 1, 0]
         p3 = [F, 0, CX, -F * B, 0, F, CY, 0, 0, 0, 1, 0]
         cal.write_text("calib_time: x\nP_rect_02: " + " ".join(map(str, p2)) + "\nP_rect_03: " + " ".join(map(str, p3)) + "\n")
+    elif kind == "opencv_yml":  # the robot's own file (`capture`'s calib.yml, docs/capture.md)
+        cal = tmp_path / "calib.yml"
+        cal.write_text(f"%YAML:1.0\n---\nrectified: 1\nf: {F}\nB: {B}\ncx: {CX}\ncy: {CY}\n")
     else:
         cal = tmp_path / "c.json"
         cal.write_text(json.dumps({"focal_px": F, "baseline_m": B, "cx": CX, "cy": CY}))
