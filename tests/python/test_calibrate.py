@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import calib_synth
-from fuzzyctl.calibrate import Board, calibrate_folder, detect_corners, find_pairs, parse_board
+from fuzzyctl.calibrate import Board, calibrate_folder, coverage, detect_corners, find_pairs, parse_board
 from fuzzyctl.cli import main
 from fuzzyctl.errors import FatalError
 
@@ -151,3 +151,28 @@ def test_cli_errors_are_one_line_with_exit_codes(shots, tmp_path, capsys):
     rc = main(["calibrate", str(folder), "--board", "9x6", "--square", "0.03", "--out", str(out), "--max-epipolar", "0"])
     assert rc == 1 and out.is_file()
     assert "epipolar error" in capsys.readouterr().err
+
+
+def test_coverage_counts_the_grid_cells_holding_a_corner():
+    size = (640, 480)
+    corners = [np.array([[[1, 1]], [[639, 1]], [[1, 479]], [[639, 479]]], np.float32)]
+    assert coverage(corners, size) == pytest.approx(4 / 16)
+    xs, ys = np.meshgrid(np.arange(40, 640, 160), np.arange(30, 480, 120))
+    full = [np.stack([xs.ravel(), ys.ravel()], axis=1).reshape(-1, 1, 2).astype(np.float32)]
+    assert coverage(full, size) == 1.0
+    assert coverage([], size) == 0.0
+
+
+def test_report_and_coverage_warning(shots, tmp_path, capsys):
+    folder, truth = shots
+    report = tmp_path / "calib.html"
+    assert main(["calibrate", str(folder), "--board", "9x6", "--square", str(truth.square_m), "--out",
+                 str(tmp_path / "s.yml"), "--report", str(report)]) == 0
+    out = capsys.readouterr().out
+    cal = calibrate_folder(folder, Board(truth.cols, truth.rows, truth.square_m))
+    assert f"left {100 * cal.coverage_left:.0f} %" in out
+    # the synthetic boards stay near the image centre: the warning must say so
+    assert min(cal.coverage_left, cal.coverage_right) < 0.6 and "WARNING: corners cover under 60 %" in out
+    page = report.read_text()
+    assert "Where the corners were" in page and "A pair rectified with this calibration" in page
+    assert page.count("data:image/png;base64,") == 3

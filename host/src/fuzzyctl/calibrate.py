@@ -18,7 +18,10 @@ Steps (all OpenCV; nothing here re-implements a calib3d routine):
    worst view and repeat 2-3 (a blurred or mis-detected view pulls every parameter);
 5. quality: the *rectified epipolar error*, the RMS of y_left - y_right over every corner after
    ``stereoRectify`` + ``undistortPoints`` — what the matcher cares about (it searches along rows
-   only); above ~0.5 px the row search starts to miss.
+   only); above ~0.5 px the row search starts to miss. And the *corner coverage*: the share of the
+   cells of a 4 x 4 grid over each image that hold a corner of some view. The lens distortion is
+   only measured where corners were; below 60 % it is extrapolated into the corners of the image,
+   where rectification then errs first (a warning, not an error).
 
 Conventions (the firmware's): X_right = R X_left + T, T in metres, the right camera on the right
 (T.x < 0). The square size is in metres; a value above 0.5 is taken for millimetres and refused.
@@ -162,10 +165,31 @@ class StereoCalibration:
     views: list[ViewError] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)  # (name, reason)
     dropped: list[str] = field(default_factory=list)  # views removed by max_view_error
+    corners_left: list[np.ndarray] = field(default_factory=list)  # per used view, N x 1 x 2
+    corners_right: list[np.ndarray] = field(default_factory=list)
+    coverage_left: float = 0.0  # share of a 4 x 4 grid's cells holding a corner
+    coverage_right: float = 0.0
 
     @property
     def baseline_m(self) -> float:
         return float(np.linalg.norm(self.T))
+
+
+COVERAGE_GRID = (4, 4)
+COVERAGE_WARN = 0.6
+
+
+def coverage(corners: Sequence[np.ndarray], size: tuple[int, int], grid: tuple[int, int] = COVERAGE_GRID) -> float:
+    """Share of the cells of a ``grid`` (columns, rows) over an image of ``size`` (width, height) that
+    hold at least one corner."""
+    gx, gy = grid
+    hit = np.zeros((gy, gx), bool)
+    for c in corners:
+        p = np.asarray(c, float).reshape(-1, 2)
+        ix = np.clip((p[:, 0] * gx / size[0]).astype(int), 0, gx - 1)
+        iy = np.clip((p[:, 1] * gy / size[1]).astype(int), 0, gy - 1)
+        hit[iy, ix] = True
+    return float(hit.mean())
 
 
 def _view_errors(obj, pts, K, D, rvecs, tvecs) -> list[float]:
@@ -279,7 +303,8 @@ def calibrate_folder(
         epipolar_rms_px=float(np.sqrt(np.mean(dy**2))), epipolar_max_px=float(np.max(np.abs(dy))),
         focal_rect_px=float(P1[0, 0]),
         views=[ViewError(n, float(e[0]), float(e[1])) for n, e in zip(names, per_view)],
-        skipped=skipped, dropped=dropped,
+        skipped=skipped, dropped=dropped, corners_left=pts_l, corners_right=pts_r,
+        coverage_left=coverage(pts_l, size), coverage_right=coverage(pts_r, size),
     )
 
 
@@ -359,4 +384,83 @@ def summary_lines(cal: StereoCalibration) -> Sequence[str]:
         f"rectified f {cal.focal_rect_px:.2f} px",
         f"RMS reprojection {cal.rms_px:.3f} px; rectified epipolar error RMS {cal.epipolar_rms_px:.3f} px, "
         f"max {cal.epipolar_max_px:.3f} px",
+        f"corner coverage (4 x 4 grid): left {100 * cal.coverage_left:.0f} %, right {100 * cal.coverage_right:.0f} %",
+    ] + ([
+        f"WARNING: corners cover under {100 * COVERAGE_WARN:.0f} % of an image: the lens distortion is extrapolated "
+        "towards its corners; add pairs with the board near the image corners and edges"
+    ] if min(cal.coverage_left, cal.coverage_right) < COVERAGE_WARN else [])
+
+
+def write_report(path: Path, cal: StereoCalibration, preview_pair: PairFiles | None = None) -> Path:
+    """One HTML page: the figures, the per-view errors, where the corners were, a rectified pair."""
+    import base64
+    import html
+    import io
+    import tempfile
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def png(fig) -> str:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+        plt.close(fig)
+        return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+    names = [v.name for v in cal.views]
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(names)), 3.2))
+    x = np.arange(len(names))
+    ax.bar(x - 0.2, [v.left_px for v in cal.views], 0.4, label="left")
+    ax.bar(x + 0.2, [v.right_px for v in cal.views], 0.4, label="right")
+    ax.set_xticks(x, names, rotation=90, fontsize=7)
+    ax.set_ylabel("RMS reprojection error [px]")
+    ax.legend(fontsize=8)
+    ax.grid(True, axis="y", alpha=0.3)
+    errors = png(fig)
+
+    w, h = cal.image_size
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.9))
+    for a, corners, cov, side in ((axes[0], cal.corners_left, cal.coverage_left, "left"),
+                                  (axes[1], cal.corners_right, cal.coverage_right, "right")):
+        for i, c in enumerate(corners):
+            p = np.asarray(c).reshape(-1, 2)
+            a.plot(p[:, 0], p[:, 1], ".", ms=2, color=plt.cm.tab20(i % 20))
+        for k in range(1, COVERAGE_GRID[0]):
+            a.axvline(k * w / COVERAGE_GRID[0], color="0.8", lw=0.8)
+        for k in range(1, COVERAGE_GRID[1]):
+            a.axhline(k * h / COVERAGE_GRID[1], color="0.8", lw=0.8)
+        a.set_xlim(0, w)
+        a.set_ylim(h, 0)
+        a.set_aspect("equal")
+        a.set_title(f"{side} camera: corners of every view, coverage {100 * cov:.0f} %", fontsize=9)
+    cover = png(fig)
+
+    preview = ""
+    if preview_pair is not None:
+        with tempfile.TemporaryDirectory() as td:
+            pth = Path(td) / "p.png"
+            write_preview(pth, cal, preview_pair)
+            preview = ("<h2>A pair rectified with this calibration</h2><p>Every feature must lie on the same row in "
+                       "both halves (the lines help the eye).</p><img src='data:image/png;base64,"
+                       + base64.b64encode(pth.read_bytes()).decode("ascii") + "'>")
+    rows = "".join(f"<li>{html.escape(line)}</li>" for line in summary_lines(cal))
+    skipped = "".join(f"<li>{html.escape(n)}: {html.escape(r)}</li>" for n, r in cal.skipped)
+    parts = [
+        "<!doctype html><meta charset='utf-8'><title>fuzzystereo calibration</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}img{max-width:100%}</style>",
+        "<h1>Stereo calibration</h1>",
+        f"<ul>{rows}</ul>",
+        f"<h2>Per view</h2><img src='{errors}'>",
+        f"<h2>Where the corners were</h2><img src='{cover}'>",
+        preview,
     ]
+    if skipped:
+        parts.append(f"<h2>Skipped pairs</h2><ul>{skipped}</ul>")
+    if cal.dropped:
+        parts.append(f"<p>Dropped (reprojection error above --max-view-error): {html.escape(', '.join(cal.dropped))}</p>")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path

@@ -549,15 +549,19 @@ def _compare_dataset(dataset_dir: Path, tolerances: Path | None, report: Path | 
 @click.option("--pitch-deg", type=click.FloatRange(min=-45.0, max=45.0), default=None,
               help="Downward camera tilt [deg], written for the detector.")
 @click.option("--preview", type=_path, default=None, help="PNG of one pair rectified with the result, with row lines.")
+@click.option("--report", type=_path, default=None,
+              help="HTML page: figures, per-view errors, corner coverage, a rectified pair.")
 @click.option("--max-epipolar", type=click.FloatRange(min=0.0), default=1.0, show_default=True,
               help="Fail (exit 1, file still written) when the rectified epipolar RMS error exceeds this [px].")
 def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pairs: int, max_view_error: float | None,
-                  height_m: float | None, pitch_deg: float | None, preview: Path | None, max_epipolar: float) -> None:
+                  height_m: float | None, pitch_deg: float | None, preview: Path | None, report: Path | None,
+                  max_epipolar: float) -> None:
     """Calibrate a stereo pair from a `fuzzystereo capture` folder of raw chessboard pairs
     (FOLDER/left/*, FOLDER/right/*) and write the calibration file `camera.calibration` reads."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-    from .calibrate import calibrate_folder, find_pairs, pair_by_name, parse_board, summary_lines, write_calibration, write_preview
+    from .calibrate import (calibrate_folder, find_pairs, pair_by_name, parse_board, summary_lines, write_calibration,
+                            write_preview, write_report)
     from .errors import CheckFailed
 
     b = parse_board(board, square_m)
@@ -580,6 +584,9 @@ def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pair
     if preview is not None:
         write_preview(preview, cal, pair_by_name(folder, cal.views[0].name))
         console.print(f"wrote {preview}")
+    if report is not None:
+        write_report(report, cal, pair_by_name(folder, cal.views[0].name))
+        console.print(f"wrote {report}")
     if cal.epipolar_rms_px > max_epipolar:
         raise CheckFailed(
             f"rectified epipolar error {cal.epipolar_rms_px:.3f} px RMS > --max-epipolar {max_epipolar} px: the matcher "
