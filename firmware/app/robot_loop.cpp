@@ -623,13 +623,7 @@ LoopResult RobotLoop::run() {
       }
       stage_ms["capture"].push_back(wall_ms_since(s0));
     }
-    // A new frame feeds the watchdog as a new plan does ("no new frame or plan within
-    // [watchdog] timeout_ms"): with plans once per control period (200 ms by default, the watchdog's
-    // default timeout too) a feed on plans alone left gaps of one period plus the processing time's
-    // jitter, and on the wall clock the watchdog stopped the motors between healthy plans on about
-    // every other frame (`run --source replay:` / `oakd`, session 19). Now a healthy loop's gaps are
-    // the processing time (frame -> plan) and the period minus it (plan -> next frame); a stalled
-    // camera or a stalled pipeline still stops the motors timeout_ms after the last frame or plan.
+    // ---- fault injection (perception failsafe test): a blind camera from blind_frame on ----
     if (opt.blind_frame >= 0 && frame >= opt.blind_frame) {
       if (blind_t_ns < 0) blind_t_ns = t_frame;
       std::uint64_t seed = 0x9e3779b97f4a7c15ull ^ std::uint64_t(frame);
@@ -658,6 +652,13 @@ LoopResult RobotLoop::run() {
       }
       if (opt.blind_side != "left") blind(gr);
     }
+    // A new frame feeds the watchdog as a new plan does ("no new frame or plan within
+    // [watchdog] timeout_ms"): with plans once per control period (200 ms by default, the watchdog's
+    // default timeout too) a feed on plans alone left gaps of one period plus the processing time's
+    // jitter, and on the wall clock the watchdog stopped the motors between healthy plans on about
+    // every other frame (`run --source replay:` / `oakd`, session 19). Now a healthy loop's gaps are
+    // the processing time (frame -> plan) and the period minus it (plan -> next frame); a stalled
+    // camera or a stalled pipeline still stops the motors timeout_ms after the last frame or plan.
     feed(clock.now_ns());
     // Commanded odometry up to the capture: the frame's detections are placed from the pose the robot
     // had when it was taken (as on the simulated clock), not after the processing.
