@@ -82,20 +82,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     Track& tr = tracks_[ti];
     const int mi = meas_of[ti];
     if (mi < 0) {
-      if (visible && visible(tr.pos())) {  // out of view: coast, no miss counted
-        bool all_in = true;
-        if (p_.miss_sigmas > 0) {
-          // Only where the whole region the object may be in is in view does seeing nothing mean it
-          // is not there; a drifting prediction of an out-of-view mover enters the view first.
-          const auto& P = tr.kf.P();
-          const double r = p_.miss_sigmas * std::sqrt(std::max(P(0, 0), P(1, 1))) + tr.radius_m;
-          for (int k = 0; k < 8 && all_in; ++k) {
-            const double a = k * M_PI / 4.0;
-            all_in = visible(tr.pos() + Vec2{r * std::cos(a), r * std::sin(a)});
-          }
-        }
-        if (all_in) ++tr.misses;
-      }
+      if (visible && visible(tr.pos())) ++tr.misses;  // out of view: coast, no miss counted
       continue;
     }
     const ObstacleMeasurement& m = meas[mi];

@@ -218,35 +218,6 @@ TEST(Tracker, DeletedAfterKVisibleMissesButCoastsOutOfView) {
   EXPECT_TRUE(b.tracks().empty());
 }
 
-// [tracker] miss_sigmas: a mover that left the view coasts with growing uncertainty; when its
-// prediction comes back into view but the region it may be in does not lie in view as a whole, an
-// empty frame is no evidence that it is gone (seed 13, scenarios 30 and 33: the prediction of an
-// over-estimated velocity drifted into the view, the track was deleted, and the robot turned into
-// the mover beside it 2-3 s later).
-TEST(Tracker, MissSigmasCountsAMissOnlyWhenTheWholeUncertaintyDiscIsInView) {
-  TrackerParams tp;
-  tp.confirm_hits = 2;
-  tp.max_misses = 4;
-  tp.max_coast_s = 20.0;
-  // the view: x > 1 (the robot looks along +x from the origin)
-  const auto in_view = [](Vec2 p) { return p.x > 1.0; };
-  auto run = [&](double miss_sigmas, int coast_frames) {
-    tp.miss_sigmas = miss_sigmas;
-    MultiTracker mt(tp);
-    // seen moving at +0.5 m/s in y while in view, then out of view (x < 1) for a while
-    for (int f = 0; f < 6; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.1 * f}, 0.15, 0, 0.03}}, in_view);
-    const auto vis_none = [](Vec2) { return false; };
-    for (int f = 6; f < 6 + coast_frames; ++f) mt.step(s_to_ns(0.2 * f), {}, vis_none);
-    // now the prediction is in view again but nothing is measured there
-    for (int f = 6 + coast_frames; f < 6 + coast_frames + 6; ++f) mt.step(s_to_ns(0.2 * f), {}, in_view);
-    return mt.tracks().size();
-  };
-  EXPECT_EQ(run(0.0, 25), 0u);  // the centre alone: 4 visible misses delete it
-  EXPECT_EQ(run(2.0, 25), 1u);  // after 5 s of coasting its 2-sigma disc reaches out of view: kept
-  // just after losing it the disc is small and lies in view: deleted as before
-  EXPECT_EQ(run(2.0, 0), 0u);
-}
-
 TEST(Tracker, LostTracksRemembersADeletedConfirmedTrackUntilKeepS) {
   TrackerParams tp;
   tp.confirm_hits = 2;
