@@ -123,8 +123,10 @@ def test_a_failing_record_does_not_end_the_mission(firmware_bin, common_dir, tmp
     # stops, the robot still reaches its goal. Before session 20 the first failed snapshot threw and
     # ended the run.
     rec, out = tmp_path / "rec", tmp_path / "r.json"
-    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
-            "--record", str(rec), "--snapshot-every", "2", "--record-fail-frame", "5", "--json", str(out))
+    cfg = tmp_path / "c.toml"  # only the injected failure stops the record, whatever the machine's free space
+    cfg.write_text("[record]\nmin_free_mb = 0.0\nmin_free_log_mb = 0.0\n")
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet", "--config",
+            str(cfg), "--record", str(rec), "--snapshot-every", "2", "--record-fail-frame", "5", "--json", str(out))
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
     assert r["reached"] and not r["collided"]
@@ -138,9 +140,9 @@ def test_a_failing_record_does_not_end_the_mission(firmware_bin, common_dir, tmp
                                                                               "000004_overlay.png"]
 
 
-@pytest.mark.parametrize("limits, snapshots, log_lines", [("min_free_mb = 1e6", 0, 12),
+@pytest.mark.parametrize("limits, snapshots, log_lines", [("min_free_mb = 1e6\nmin_free_log_mb = 0.0", 0, 12),
                                                           ("min_free_mb = 1e6\nmin_free_log_mb = 1e6", 0, 0),
-                                                          ("min_free_mb = 0.0", 2, 12)])
+                                                          ("min_free_mb = 0.0\nmin_free_log_mb = 0.0", 2, 12)])
 def test_record_stops_below_its_free_space_limits(firmware_bin, common_dir, tmp_path, limits, snapshots, log_lines):
     cfg = tmp_path / "c.toml"
     cfg.write_text(f"[record]\n{limits}\n")

@@ -52,8 +52,10 @@ def test_gpiod_motors_without_hardware_name_the_chip(firmware_bin, common_dir, t
 
 def test_recorded_run_makes_a_report(firmware_bin, common_dir, tmp_path):
     rec = tmp_path / "rec"
+    cfg = tmp_path / "c.toml"  # snapshots whatever the test machine's free space ([record] min_free_mb)
+    cfg.write_text("[record]\nmin_free_mb = 0.0\nmin_free_log_mb = 0.0\n")
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim' / 'scenes' / 'demo.toml'}", "--max-frames", "6",
-            "--snapshot-every", "5", "--record", str(rec), "--quiet", "--json", str(tmp_path / "r.json"))
+            "--snapshot-every", "5", "--record", str(rec), "--quiet", "--json", str(tmp_path / "r.json"), "--config", str(cfg))
     assert p.returncode == 0, p.stderr
     frames = [json.loads(ln) for ln in (rec / "frames.jsonl").read_text().splitlines()]
     assert [f["frame"] for f in frames] == list(range(6))
