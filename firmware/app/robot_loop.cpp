@@ -626,24 +626,15 @@ LoopResult RobotLoop::run() {
     // ---- fault injection (perception failsafe test): a blind camera from blind_frame on ----
     if (opt.blind_frame >= 0 && frame >= opt.blind_frame) {
       if (blind_t_ns < 0) blind_t_ns = t_frame;
-      std::uint64_t seed = 0x9e3779b97f4a7c15ull ^ std::uint64_t(frame);
+      // dark: black; covered: grey 12 + N(0, 3), seeded per frame (deterministic runs)
+      std::mt19937 rng(static_cast<std::uint32_t>(frame));
+      std::normal_distribution<double> noise(12.0, 3.0);
       const auto blind = [&](ImageU8& g) {
-        for (auto& v : g.data) {
-          if (opt.blind_mode == "dark") {
-            v = 0;
-            continue;
-          }
-          // covered: 12 + N(0, 3) from a sum of four uniforms (splitmix64), deterministic per frame
-          double sum = 0;
-          for (int k = 0; k < 4; ++k) {
-            seed += 0x9e3779b97f4a7c15ull;
-            std::uint64_t z = seed;
-            z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-            z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-            sum += double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-          }
-          v = static_cast<std::uint8_t>(std::clamp(std::lround(12.0 + 3.0 * std::sqrt(3.0) * (sum - 2.0)), 0L, 255L));
+        if (opt.blind_mode == "dark") {
+          std::fill(g.data.begin(), g.data.end(), std::uint8_t(0));
+          return;
         }
+        for (auto& v : g.data) v = static_cast<std::uint8_t>(std::clamp(std::lround(noise(rng)), 0L, 255L));
       };
       if (opt.blind_side != "right") {
         blind(gl);
@@ -739,8 +730,10 @@ LoopResult RobotLoop::run() {
     }
     // A faulty frame (blind or frozen camera) tells nothing: its empty scan would clear map cells
     // and its missing detections would count as misses of the tracks in view.
-    if (perception_fault) meas.clear();
-    if (!perception_fault) world_map.integrate(scan);
+    if (perception_fault)
+      meas.clear();
+    else
+      world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
       const Vec2 d = p - pose.pos();
@@ -1131,7 +1124,6 @@ LoopResult RobotLoop::run() {
           const cv::Mat dispf = disp_q4_to_float(detection_disparity(mr, det_input));
           write_image((base / (std::string(stem) + "_disp.png")).string(),
                       colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
-          return true;
         });
         if (saved) fj["snapshot"] = std::string("frames/") + stem;
       }

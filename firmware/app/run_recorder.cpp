@@ -42,29 +42,26 @@ void RunRecorder::begin_frame(int frame) {
   }
 }
 
-bool RunRecorder::snapshot(const std::function<bool()>& write) {
+bool RunRecorder::snapshot(const std::function<void()>& write) {
   if (!enabled()) return false;
   if (!snapshots_) {
     ++dropped_snapshots_;
     return false;
   }
   std::string err;
-  bool ok = false;
   if (p_.fail_frame >= 0 && frame_ >= p_.fail_frame) {
     err = "injected write failure";
   } else {
     try {
-      ok = write();
-      if (!ok) err = "write failed";
+      write();
+      return true;
     } catch (const std::exception& e) {
       err = e.what();
     }
   }
-  if (!ok) {
-    ++dropped_snapshots_;
-    stop_snapshots(err);
-  }
-  return ok;
+  ++dropped_snapshots_;
+  stop_snapshots(err);
+  return false;
 }
 
 void RunRecorder::log_line(const std::string& line) {

@@ -34,9 +34,9 @@ class RunRecorder {
   // Call once per frame before writing: checks free space (every check_every frames).
   void begin_frame(int frame);
   bool snapshots_on() const { return enabled() && snapshots_; }
-  // Writes one snapshot with `write` (which throws or returns false on failure); false when skipped
-  // or failed.
-  bool snapshot(const std::function<bool()>& write);
+  // Writes one snapshot with `write` (which throws on failure, as write_image does); false when
+  // skipped or failed.
+  bool snapshot(const std::function<void()>& write);
   void log_line(const std::string& line);
   const std::string& dir() const { return dir_; }
   int dropped_snapshots() const { return dropped_snapshots_; }

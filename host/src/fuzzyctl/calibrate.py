@@ -111,7 +111,8 @@ def find_pairs(folder: Path) -> list[PairFiles]:
     return [PairFiles(n, sides["left"][n], sides["right"][n]) for n in sorted(sides["left"])]
 
 
-def _read_grey(path: Path) -> np.ndarray:
+def read_grey(path: Path) -> np.ndarray:
+    """An image file as 8-bit grey; FatalError naming the file when it cannot be read."""
     import cv2
 
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
@@ -165,6 +166,7 @@ class StereoCalibration:
     views: list[ViewError] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)  # (name, reason)
     dropped: list[str] = field(default_factory=list)  # views removed by max_view_error
+    rect: tuple[np.ndarray, ...] = ()  # R1, R2, P1, P2 of the rectification (alpha 0)
     corners_left: list[np.ndarray] = field(default_factory=list)  # per used view, N x 1 x 2
     corners_right: list[np.ndarray] = field(default_factory=list)
     coverage_left: float = 0.0  # share of a 4 x 4 grid's cells holding a corner
@@ -192,23 +194,12 @@ def coverage(corners: Sequence[np.ndarray], size: tuple[int, int], grid: tuple[i
     return float(hit.mean())
 
 
-def _view_errors(obj, pts, K, D, rvecs, tvecs) -> list[float]:
-    import cv2
-
-    out = []
-    for o, p, r, t in zip(obj, pts, rvecs, tvecs):
-        proj, _ = cv2.projectPoints(o, r, t, K, D)
-        out.append(float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - p.reshape(-1, 2)) ** 2, axis=1)))))
-    return out
-
-
 def _calibrate(obj, pts_l, pts_r, size):
     import cv2
 
-    flags_single = 0
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-9)
-    _, K1, D1, _, _ = cv2.calibrateCamera(obj, pts_l, size, None, None, flags=flags_single, criteria=crit)
-    _, K2, D2, _, _ = cv2.calibrateCamera(obj, pts_r, size, None, None, flags=flags_single, criteria=crit)
+    _, K1, D1, _, _ = cv2.calibrateCamera(obj, pts_l, size, None, None, criteria=crit)
+    _, K2, D2, _, _ = cv2.calibrateCamera(obj, pts_r, size, None, None, criteria=crit)
     rms, K1, D1, K2, D2, R, T, _, _, rvecs, tvecs, per_view = cv2.stereoCalibrateExtended(
         obj, pts_l, pts_r, K1, D1, K2, D2, size, None, None,
         flags=cv2.CALIB_USE_INTRINSIC_GUESS, criteria=crit,
@@ -216,18 +207,13 @@ def _calibrate(obj, pts_l, pts_r, size):
     return float(rms), K1, D1, K2, D2, R, T.reshape(3, 1), np.asarray(per_view, float).reshape(-1, 2)
 
 
-def epipolar_error(cal_K1, cal_D1, cal_K2, cal_D2, R, T, size, pts_l, pts_r) -> tuple[np.ndarray, np.ndarray]:
-    """Rectified row differences y_l - y_r [px] of every corner pair, and P1 (alpha 0, zero disparity)."""
+def _rectify(K1, D1, K2, D2, R, T, size) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """R1, R2, P1, P2 of ``cv2.stereoRectify`` as the firmware's Rectifier computes them (zero
+    disparity, alpha 0)."""
     import cv2
 
-    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(cal_K1, cal_D1, cal_K2, cal_D2, size, R, T,
-                                                flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
-    dy = []
-    for pl, pr in zip(pts_l, pts_r):
-        ul = cv2.undistortPoints(pl, cal_K1, cal_D1, R=R1, P=P1).reshape(-1, 2)
-        ur = cv2.undistortPoints(pr, cal_K2, cal_D2, R=R2, P=P2).reshape(-1, 2)
-        dy.append(ul[:, 1] - ur[:, 1])
-    return np.concatenate(dy) if dy else np.zeros(0), P1
+    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(K1, D1, K2, D2, size, R, T, flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
+    return R1, R2, P1, P2
 
 
 def calibrate_folder(
@@ -248,7 +234,7 @@ def calibrate_folder(
     pts_r: list[np.ndarray] = []
     skipped: list[tuple[str, str]] = []
     for pf in pairs:
-        gl, gr = _read_grey(pf.left), _read_grey(pf.right)
+        gl, gr = read_grey(pf.left), read_grey(pf.right)
         if gl.shape != gr.shape:
             raise FatalError(f"{pf.left} is {gl.shape[1]}x{gl.shape[0]} but {pf.right} is {gr.shape[1]}x{gr.shape[0]}")
         this = (gl.shape[1], gl.shape[0])
@@ -297,14 +283,21 @@ def calibrate_folder(
             f"the calibrated T.x is {T[0, 0]:+.4f} m > 0: the 'left' images come from the right camera "
             "(swap the cameras or the left/ and right/ folders)"
         )
-    dy, P1 = epipolar_error(K1, D1, K2, D2, R, T, size, pts_l, pts_r)
+    # Step 5: rows of every corner pair after rectification
+    rect = _rectify(K1, D1, K2, D2, R, T, size)
+    R1, R2, P1, P2 = rect
+    dy = np.concatenate([
+        cv2.undistortPoints(pl, K1, D1, R=R1, P=P1).reshape(-1, 2)[:, 1]
+        - cv2.undistortPoints(pr, K2, D2, R=R2, P=P2).reshape(-1, 2)[:, 1]
+        for pl, pr in zip(pts_l, pts_r)
+    ])
     return StereoCalibration(
         image_size=size, K1=K1, D1=D1, K2=K2, D2=D2, R=R, T=T, rms_px=rms,
         epipolar_rms_px=float(np.sqrt(np.mean(dy**2))), epipolar_max_px=float(np.max(np.abs(dy))),
         focal_rect_px=float(P1[0, 0]),
         views=[ViewError(n, float(e[0]), float(e[1])) for n, e in zip(names, per_view)],
         skipped=skipped, dropped=dropped, corners_left=pts_l, corners_right=pts_r,
-        coverage_left=coverage(pts_l, size), coverage_right=coverage(pts_r, size),
+        coverage_left=coverage(pts_l, size), coverage_right=coverage(pts_r, size), rect=rect,
     )
 
 
@@ -334,14 +327,13 @@ def write_calibration(path: Path, cal: StereoCalibration, *, height_m: float | N
         fs.release()
 
 
-def write_preview(path: Path, cal: StereoCalibration, pair: PairFiles, lines: int = 16) -> None:
-    """One pair rectified with ``cal`` side by side, with horizontal lines: a feature must sit on
-    the same line in both halves."""
+def rectified_preview(cal: StereoCalibration, pair: PairFiles, lines: int = 16) -> np.ndarray:
+    """One pair rectified with ``cal`` side by side (BGR), with horizontal lines: a feature must sit
+    on the same line in both halves."""
     import cv2
 
     size = cal.image_size
-    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(cal.K1, cal.D1, cal.K2, cal.D2, size, cal.R, cal.T,
-                                                flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
+    R1, R2, P1, P2 = cal.rect
     halves = []
     for img_path, K, D, Rr, P in ((pair.left, cal.K1, cal.D1, R1, P1), (pair.right, cal.K2, cal.D2, R2, P2)):
         img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
@@ -354,9 +346,16 @@ def write_preview(path: Path, cal: StereoCalibration, pair: PairFiles, lines: in
     for i in range(1, lines):
         y = int(round(i * h / lines))
         cv2.line(out, (0, y), (out.shape[1] - 1, y), (0, 255, 0) if i % 2 else (0, 0, 255), 1)
+    return out
+
+
+def write_preview(path: Path, cal: StereoCalibration, pair: PairFiles) -> None:
+    """``rectified_preview`` as a PNG file."""
+    import cv2
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), out):
+    if not cv2.imwrite(str(path), rectified_preview(cal, pair)):
         raise FatalError(f"cannot write {path}")
 
 
@@ -393,21 +392,14 @@ def summary_lines(cal: StereoCalibration) -> Sequence[str]:
 
 def write_report(path: Path, cal: StereoCalibration, preview_pair: PairFiles | None = None) -> Path:
     """One HTML page: the figures, the per-view errors, where the corners were, a rectified pair."""
-    import base64
     import html
-    import io
-    import tempfile
 
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    def png(fig) -> str:
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-        plt.close(fig)
-        return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    from .report import figure_data_uri, image_data_uri
 
     names = [v.name for v in cal.views]
     fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(names)), 3.2))
@@ -418,7 +410,7 @@ def write_report(path: Path, cal: StereoCalibration, preview_pair: PairFiles | N
     ax.set_ylabel("RMS reprojection error [px]")
     ax.legend(fontsize=8)
     ax.grid(True, axis="y", alpha=0.3)
-    errors = png(fig)
+    errors = figure_data_uri(fig)
 
     w, h = cal.image_size
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.9))
@@ -435,16 +427,12 @@ def write_report(path: Path, cal: StereoCalibration, preview_pair: PairFiles | N
         a.set_ylim(h, 0)
         a.set_aspect("equal")
         a.set_title(f"{side} camera: corners of every view, coverage {100 * cov:.0f} %", fontsize=9)
-    cover = png(fig)
+    cover = figure_data_uri(fig)
 
     preview = ""
     if preview_pair is not None:
-        with tempfile.TemporaryDirectory() as td:
-            pth = Path(td) / "p.png"
-            write_preview(pth, cal, preview_pair)
-            preview = ("<h2>A pair rectified with this calibration</h2><p>Every feature must lie on the same row in "
-                       "both halves (the lines help the eye).</p><img src='data:image/png;base64,"
-                       + base64.b64encode(pth.read_bytes()).decode("ascii") + "'>")
+        preview = ("<h2>A pair rectified with this calibration</h2><p>Every feature must lie on the same row in "
+                   f"both halves (the lines help the eye).</p><img src='{image_data_uri(rectified_preview(cal, preview_pair))}'>")
     rows = "".join(f"<li>{html.escape(line)}</li>" for line in summary_lines(cal))
     skipped = "".join(f"<li>{html.escape(n)}: {html.escape(r)}</li>" for n, r in cal.skipped)
     parts = [

@@ -581,11 +581,12 @@ def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pair
         console.print(line)
     write_calibration(out, cal, height_m=height_m, pitch_deg=pitch_deg)
     console.print(f"wrote {out}")
+    first = pair_by_name(folder, cal.views[0].name)
     if preview is not None:
-        write_preview(preview, cal, pair_by_name(folder, cal.views[0].name))
+        write_preview(preview, cal, first)
         console.print(f"wrote {preview}")
     if report is not None:
-        write_report(report, cal, pair_by_name(folder, cal.views[0].name))
+        write_report(report, cal, first)
         console.print(f"wrote {report}")
     if cal.epipolar_rms_px > max_epipolar:
         raise CheckFailed(
@@ -609,8 +610,7 @@ def rectcheck_cmd(folder: Path | None, left_path: Path | None, right_path: Path 
     """Row differences of SIFT matches in rectified pairs (a `fuzzystereo capture --calib` folder, or
     one pair): a stereo rig whose cameras moved since calibration shows a vertical offset, roll or
     scale trend. Exit 1 when the median |dy| exceeds --max-dy (then re-calibrate)."""
-    import cv2
-
+    from .calibrate import read_grey
     from .errors import CheckFailed
     from .rectcheck import check_folder, check_pairs
 
@@ -619,11 +619,7 @@ def rectcheck_cmd(folder: Path | None, left_path: Path | None, right_path: Path 
     if folder is not None:
         r = check_folder(folder, max_disparity=max_disparity, limit=limit)
     else:
-        imgs = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in (left_path, right_path)]
-        for p, g in zip((left_path, right_path), imgs):
-            if g is None:
-                raise FatalError(f"cannot read image {p}")
-        r = check_pairs([(left_path.name, imgs[0], imgs[1])], max_disparity=max_disparity)
+        r = check_pairs([(left_path.name, read_grey(left_path), read_grey(right_path))], max_disparity=max_disparity)
     for p in r.pairs:
         console.print(f"{p.name}: {p.matches} matches, |dy| median {p.median_abs_dy:.2f} px")
     for line in r.lines():

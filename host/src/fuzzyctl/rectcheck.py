@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibrate import find_pairs
+from .calibrate import find_pairs, read_grey
 from .errors import FatalError
 
 
@@ -126,19 +126,9 @@ def check_pairs(pairs: list[tuple[str, np.ndarray, np.ndarray]], max_disparity: 
 
 def check_folder(folder: Path, max_disparity: float = 256.0, limit: int = 0) -> RectCheck:
     """``check_pairs`` over a capture folder (left/, right/), at most ``limit`` pairs spread evenly."""
-    import cv2
-
     files = find_pairs(folder)
     if limit and len(files) > limit:
         idx = np.linspace(0, len(files) - 1, limit).round().astype(int)
         files = [files[i] for i in sorted(set(idx))]
-    pairs = []
-    for pf in files:
-        imgs = []
-        for p in (pf.left, pf.right):
-            g = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
-            if g is None:
-                raise FatalError(f"cannot read image {p}")
-            imgs.append(g)
-        pairs.append((pf.name, imgs[0], imgs[1]))
+    pairs = [(pf.name, read_grey(pf.left), read_grey(pf.right)) for pf in files]
     return check_pairs(pairs, max_disparity=max_disparity)

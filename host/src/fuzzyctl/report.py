@@ -23,7 +23,8 @@ _VALIDITY_MISMATCH = (255, 255, 0)  # BGR cyan: valid in one map, invalid in the
 _BOTH_INVALID = (40, 40, 40)
 
 
-def _png(img: np.ndarray) -> str:
+def image_data_uri(img: np.ndarray) -> str:
+    """An 8-bit image as an inline PNG (data URI)."""
     ok, buf = cv2.imencode(".png", img)
     if not ok:  # pragma: no cover - OpenCV always encodes uint8 images
         raise RuntimeError("PNG encoding failed")
@@ -73,7 +74,8 @@ def boundaries(grey: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return out
 
 
-def _fig_png(fig) -> str:
+def figure_data_uri(fig) -> str:
+    """A matplotlib figure as an inline PNG (data URI); closes the figure."""
     from .plots import png_bytes
 
     return "data:image/png;base64," + base64.b64encode(png_bytes(fig)).decode("ascii")
@@ -105,7 +107,7 @@ def _score_scatter(c: Comparison):
 
 def _row(title: str, images: list[tuple[str, np.ndarray]], note: str = "") -> str:
     cells = "".join(
-        f'<figure><img src="{_png(img)}" alt="{html.escape(cap)}"><figcaption>{html.escape(cap)}</figcaption></figure>'
+        f'<figure><img src="{image_data_uri(img)}" alt="{html.escape(cap)}"><figcaption>{html.escape(cap)}</figcaption></figure>'
         for cap, img in images
     )
     note_html = f'<p class="note">{html.escape(note)}</p>' if note else ""
@@ -180,8 +182,8 @@ def render(c: Comparison) -> str:
 
     plots = (
         '<section><h2>FIS</h2><div class="row">'
-        f'<figure><img src="{_fig_png(surface_figure(c.fis, 61))}" alt="FIS surface"><figcaption>FIS surface ({html.escape(c.fis.defn.name)})</figcaption></figure>'
-        f'<figure><img src="{_fig_png(_score_scatter(c))}" alt="scores"><figcaption>winning scores, firmware vs reference</figcaption></figure>'
+        f'<figure><img src="{figure_data_uri(surface_figure(c.fis, 61))}" alt="FIS surface"><figcaption>FIS surface ({html.escape(c.fis.defn.name)})</figcaption></figure>'
+        f'<figure><img src="{figure_data_uri(_score_scatter(c))}" alt="scores"><figcaption>winning scores, firmware vs reference</figcaption></figure>'
         "</div></section>"
     )
     ignored = ""

@@ -12,7 +12,7 @@
 //     (measured: std 3.0, noise 2.97 -> 0.4). A single image cannot tell noise from a noise-like
 //     texture (a random-dot pattern reads std 74, "noise" 74), so a noise-only camera is a fault
 //     only when the views do not match either: fewer than noise_only_valid_pct of the pixels with a
-//     disparity (the covered lens: 8.7 % consistent by chance; the random-dot pair: most of them);
+//     disparity (the covered lens: 8.6-8.9 % consistent by chance; the random-dot pair: most of them);
 //   * valid %: the share of pixels with a disparity after ESR, below min_valid_pct on its own (a
 //     scene in the simulator: 30-60 %);
 //   * frozen: how many consecutive frames of one camera were identical (live cameras only: their
