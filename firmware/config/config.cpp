@@ -160,6 +160,7 @@ MatcherParams to_params(const Values& v) {
   p.cost.nmi_bins = i("cost.nmi_bins");
   p.cost.nmi_candidates = i("cost.nmi_candidates");
   p.cost.subpixel = v.flag("cost.subpixel");
+  p.cost.subpixel_every_segment = v.flag("cost.subpixel_every_segment");
   p.cost.gradient_gain_compensation = v.flag("cost.gradient_gain_compensation");
   p.cost.gradient_gain_deadband = v.num("cost.gradient_gain_deadband");
   p.cost.gradient_gain_trigger = v.str("cost.gradient_gain_trigger") == "gradient" ? GainTrigger::Gradient : GainTrigger::Grey;
@@ -274,6 +275,7 @@ std::string config_to_toml(const MatcherParams& p) {
     << "[cost]\nmax_disparity = " << p.cost.max_disparity << "\nalpha = " << fmt_num(p.cost.alpha)
     << (p.cost.alpha == std::floor(p.cost.alpha) ? ".0" : "") << "\nnmi_bins = " << p.cost.nmi_bins
     << "\nnmi_candidates = " << p.cost.nmi_candidates << "\nsubpixel = " << (p.cost.subpixel ? "true" : "false")
+    << "\nsubpixel_every_segment = " << (p.cost.subpixel_every_segment ? "true" : "false")
     << "\ngradient_gain_compensation = " << (p.cost.gradient_gain_compensation ? "true" : "false")
     << "\ngradient_gain_deadband = " << fmt_num(p.cost.gradient_gain_deadband)
     << (p.cost.gradient_gain_deadband == std::floor(p.cost.gradient_gain_deadband) ? ".0" : "")

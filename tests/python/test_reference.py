@@ -416,6 +416,24 @@ def test_subpixel_parabola():
     np.testing.assert_allclose(wta.subpixel_offset(scores, winner), [0.3, -0.3, 0, 0, 0, -0.59 / 1.22], atol=1e-12)
 
 
+def test_subpixel_every_segment_scores_the_neighbours_with_the_winners_nmi(fis):
+    # One segment, K = 1 candidate: the winner's neighbours are never candidates. Without the
+    # fallback it stays on the whole pixel; with it the parabola runs through
+    # FIS(NCC(d'), alpha NMI(winner) + (1 - alpha) IGSAD(d')) at d - 1, d, d + 1.
+    ncc = np.array([[0.1, 0.5, 0.9, 0.7, 0.2]])
+    igsad = np.array([[0.2, 0.6, 0.95, 0.8, 0.3]])
+    nmi = np.array([[0.0, 0.0, 0.7, 0.0, 0.0]])  # NMI elsewhere must not be read
+    c = cost.SegmentCosts(ncc=ncc, igsad=igsad, nmi=nmi, pixels=np.array([50]))
+    plain = wta.fis_winner_take_all(c, fis, 0.2, 1, "fast", subpixel=True, subpixel_every_segment=False)
+    assert plain.disparity[0] == 2 and plain.disparity_sub[0] == 2.0
+    dec = wta.fis_winner_take_all(c, fis, 0.2, 1, "fast", subpixel=True, subpixel_every_segment=True)
+    s = [fis.evaluate(ncc[0, d], 0.2 * 0.7 + 0.8 * igsad[0, d]) for d in (1, 2, 3)]
+    expected = (s[2] - s[0]) / (2 * (2 * s[1] - s[0] - s[2]))
+    assert 0 < expected < 0.5  # the right neighbour scores higher: the vertex moves right
+    assert dec.disparity[0] == 2
+    assert dec.disparity_sub[0] == pytest.approx(2 + expected, abs=1e-9)
+
+
 def test_recovers_two_planes_with_given_labels(fis):
     left, right, gt = two_plane_pair(48, 72, 2, 9, seed=3)
     labels = grid_labels(48, 72, 8)  # segment boundaries on the plane boundary (row 24)

@@ -55,10 +55,19 @@ SegmentDecision reference_wta(const DenseCosts& c, const FisLut& lut, const Cost
       }
     if (best < 0) continue;
     int offset = 0;
-    if (p.subpixel && best > 0 && best < c.D - 1 && c.valid[off + std::size_t(best) - 1] && c.valid[off + std::size_t(best) + 1]) {
-      const double sm = score(off + std::size_t(best) - 1), sp = score(off + std::size_t(best) + 1);
+    const std::size_t ib = off + std::size_t(best);
+    if (p.subpixel && best > 0 && best < c.D - 1) {
+      double sm = -1, sp = -1;
+      if (c.valid[ib - 1] && c.valid[ib + 1]) {  // both neighbours evaluated: their own scores
+        sm = score(ib - 1);
+        sp = score(ib + 1);
+      } else if (p.subpixel_every_segment) {  // otherwise with the winner's NMI
+        auto with_winner_nmi = [&](std::size_t i) { return lut.lookup(c.ncc[i], data_cost2_q16(c.nmi[ib], c.igsad[i], a16)); };
+        sm = with_winner_nmi(ib - 1);
+        sp = with_winner_nmi(ib + 1);
+      }
       const double curv = 2.0 * bs - sm - sp;
-      if (curv > 0) offset = static_cast<int>(std::clamp(std::lround((sp - sm) * 16.0 / (2.0 * curv)), -8L, 8L));
+      if (sm >= 0 && curv > 0) offset = static_cast<int>(std::clamp(std::lround((sp - sm) * 16.0 / (2.0 * curv)), -8L, 8L));
     }
     dec.disparity[std::size_t(s)] = static_cast<std::int16_t>(best);
     dec.disparity_q4[std::size_t(s)] = static_cast<std::int16_t>(best * 16 + offset);
@@ -71,7 +80,8 @@ SegmentDecision reference_wta(const DenseCosts& c, const FisLut& lut, const Cost
 // (random subsets: many adjacent pairs, so the sub-pixel step runs) and with every disparity.
 TEST(Wta, CandidateRecordsDecideAsTheDenseScan) {
   const FisLut& lut = *FisLut::cached(load_fis_definition(""), 257);
-  for (auto [K, D, subpixel] : {std::tuple{11, 17, true}, {11, 17, false}, {17, 17, true}, {3, 40, true}}) {
+  for (auto [K, D, subpixel, every] : {std::tuple{11, 17, true, true}, {11, 17, true, false}, {11, 17, false, true},
+                                       {17, 17, true, true}, {3, 40, true, true}, {3, 40, true, false}}) {
     std::mt19937 rng(static_cast<unsigned>(3 + K + D));
     std::uniform_int_distribution<std::uint32_t> u(0, 65536);
     const int S = 60;
@@ -105,16 +115,27 @@ TEST(Wta, CandidateRecordsDecideAsTheDenseScan) {
     CostParams p;
     p.alpha = 0.3;
     p.subpixel = subpixel;
+    p.subpixel_every_segment = every;
     const SegmentDecision a = fis_winner_take_all(c, lut, p), b = reference_wta(dense, lut, p);
-    SCOPED_TRACE(::testing::Message() << "K=" << K << " D=" << D << " subpixel=" << subpixel);
+    SCOPED_TRACE(::testing::Message() << "K=" << K << " D=" << D << " subpixel=" << subpixel << " every=" << every);
     EXPECT_EQ(a.disparity, b.disparity);
     EXPECT_EQ(a.disparity_q4, b.disparity_q4);
     EXPECT_EQ(a.score, b.score);
-    int moved = 0;
-    for (int s = 0; s < S; ++s) moved += a.disparity_q4[std::size_t(s)] % 16 != 0;
-    if (subpixel && 2 * K > D) {  // dense enough for adjacent triples: the sub-pixel step ran
-      EXPECT_GT(moved, 0);
+    // Segments moved off the whole pixel, those whose winner has both neighbours among the
+    // candidates and the others.
+    int moved_pair = 0, moved_other = 0, other = 0;
+    for (int s = 0; s < S; ++s) {
+      const int d = a.disparity[std::size_t(s)];
+      const std::size_t i = std::size_t(s * D + d);
+      const bool interior = d > 0 && d < D - 1, pair = interior && dense.valid[i - 1] && dense.valid[i + 1];
+      const bool moved = a.disparity_q4[std::size_t(s)] % 16 != 0;
+      (pair ? moved_pair : moved_other) += moved;
+      other += interior && !pair;
     }
+    if (subpixel && 2 * K > D) EXPECT_GT(moved_pair, 0);  // dense enough for adjacent triples
+    if (subpixel && every && other > 5) EXPECT_GT(moved_other, 0);  // the winner's-NMI fallback ran
+    if (!subpixel || !every) EXPECT_EQ(moved_other, 0);
+    if (!subpixel) EXPECT_EQ(moved_pair, 0);
   }
 }
 
@@ -126,6 +147,14 @@ TEST(Wta, RejectsCostsWithoutCandidateRecords) {
   c.ncc.assign(8, 0);
   c.igsad.assign(8, 0);
   EXPECT_THROW(fis_winner_take_all(c, lut, CostParams{}), std::invalid_argument);
+  // Records present but no dense rows: the every-segment sub-pixel step cannot run.
+  c.candidates_per_segment = 1;
+  c.candidates = {{0, 0, 0, 1}, {0, 0, 0, 2}};
+  c.ncc.clear();
+  EXPECT_THROW(fis_winner_take_all(c, lut, CostParams{}), std::invalid_argument);
+  CostParams no_fallback;
+  no_fallback.subpixel_every_segment = false;
+  EXPECT_NO_THROW(fis_winner_take_all(c, lut, no_fallback));
 }
 
 // paint_segments (row-wise table read through the labels) against painting the runs segment by

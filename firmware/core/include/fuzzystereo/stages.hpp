@@ -123,8 +123,10 @@ std::uint32_t data_cost2_q16(std::uint32_t nmi_q16, std::uint32_t igsad_q16, std
 
 // Winner-take-all over the FIS score (Section III): per segment, argmax_d FIS(dc1, dc2) over its
 // candidates (ties keep the smaller d). With p.subpixel, a parabola through the scores at d-1, d,
-// d+1 (when both neighbours are candidates) moves the winner by at most half a pixel:
-// disparity_q4 = 16 d + offset.
+// d+1 moves the winner by at most half a pixel: disparity_q4 = 16 d + offset. The scores are the
+// candidates' own when both neighbours are candidates; otherwise (p.subpixel_every_segment) all
+// three are FIS(NCC(d'), eq. (9) with the winner's NMI and IGSAD(d')), from the dense NCC / IGSAD
+// rows of the costs (the segment is left at 16 d without subpixel_every_segment).
 SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis, const CostParams& p);
 
 // Paint per-segment Q4 disparities into a Q4 disparity map.

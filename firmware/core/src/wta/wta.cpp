@@ -22,6 +22,8 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
   const int K = costs.candidates_per_segment;
   if (K <= 0 || costs.candidates.size() != n * std::size_t(K))
     throw std::invalid_argument("fis_winner_take_all: the costs hold no candidate records for every segment");
+  if (p.subpixel && p.subpixel_every_segment && (costs.ncc.size() != n * std::size_t(D) || costs.igsad.size() != costs.ncc.size()))
+    throw std::invalid_argument("fis_winner_take_all: subpixel_every_segment needs the dense NCC and IGSAD rows");
   dec.disparity.assign(n, kInvalidDisp);
   dec.disparity_q4.assign(n, kInvalidDisp);
   dec.score.assign(n, 0);
@@ -49,12 +51,28 @@ SegmentDecision fis_winner_take_all(const SegmentCosts& costs, const FisLut& fis
     dec.score[s] = static_cast<std::uint32_t>(best);
     dec.dc1[s] = rec[kb].ncc;
     dec.dc2[s] = data_cost2_q16(rec[kb].nmi, rec[kb].igsad, alpha_q16);
+    // Sub-pixel: parabola through the scores at d-1, d, d+1. Both neighbours are candidates
+    // exactly when they are the neighbouring records (ascending d); then the scores are theirs.
+    // Otherwise (subpixel_every_segment) the three are scored alike from the dense NCC / IGSAD
+    // rows with the winner's NMI in eq. (9): NMI is known only for the candidates, and with
+    // alpha = 0.2 it is a fifth of Data Cost 2, so NCC and IGSAD shape the parabola. Without
+    // this, the ~45 % of segments whose neighbours were not candidates stayed on whole pixels.
     int offset = 0;
-    // Both neighbours are candidates exactly when they are the neighbouring records (ascending d).
-    if (p.subpixel && d > 0 && d < D - 1 && kb > 0 && kb + 1 < K && rec[kb - 1].d == d - 1 && rec[kb + 1].d == d + 1) {
-      const std::int64_t sm = score_of(rec[kb - 1]), s0 = best, sp = score_of(rec[kb + 1]);
+    if (p.subpixel && d > 0 && d < D - 1) {
+      const std::int64_t s0 = best;
+      std::int64_t sm = -1, sp = -1;
+      if (kb > 0 && kb + 1 < K && rec[kb - 1].d == d - 1 && rec[kb + 1].d == d + 1) {
+        sm = score_of(rec[kb - 1]);
+        sp = score_of(rec[kb + 1]);
+      } else if (p.subpixel_every_segment) {
+        const std::size_t o = s * std::size_t(D) + std::size_t(d);
+        const std::uint32_t nmi = rec[kb].nmi;
+        auto at = [&](std::size_t i) { return fis.lookup(costs.ncc[i], data_cost2_q16(nmi, costs.igsad[i], alpha_q16)); };
+        sm = at(o - 1);  // (at(o) == best: the records hold the winner's NCC and IGSAD)
+        sp = at(o + 1);
+      }
       const std::int64_t curv = 2 * s0 - sm - sp;  // > 0 at a strict maximum
-      if (curv > 0) {
+      if (sm >= 0 && curv > 0) {
         // vertex of the parabola: (sp - sm) / (2 curv) px, in Q4 rounded to nearest, |.| <= 1/2 px
         const std::int64_t num = (sp - sm) * kDispScale, den = 2 * curv;
         offset = static_cast<int>((num >= 0 ? num + den / 2 : num - den / 2) / den);

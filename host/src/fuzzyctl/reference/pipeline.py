@@ -103,7 +103,7 @@ def match(
     costs_r = cost.segment_costs(right, left, grad_r, grad_l, lab_r, -1, c.max_disparity, c.nmi_bins)
     clock.lap("cost")
 
-    wta_args = (fis, c.alpha, c.nmi_candidates, engine, c.subpixel, cfg.fis.lut_size)
+    wta_args = (fis, c.alpha, c.nmi_candidates, engine, c.subpixel, cfg.fis.lut_size, c.subpixel_every_segment)
     dec_l = wta.fis_winner_take_all(costs_l, *wta_args)  # eq. (8)-(12), WTA
     dec_r = wta.fis_winner_take_all(costs_r, *wta_args)
     fis_check = _cross_check(fis, dec_l, dec_r) if engine == "fast" else 0.0

@@ -14,9 +14,11 @@ firmware's expression on the same exact integer GSAD) and evaluates the exact FI
 the node coordinates, so the ranking differs from the firmware's only where a node value lies
 within float rounding of a Q16 half-step.
 
-With ``cost.subpixel``, a parabola through the scores at d-1, d, d+1 (when both neighbours took
-part in the WTA) moves the winner to its vertex, d + (s(d+1) - s(d-1)) / (2 (2 s(d) - s(d-1) - s(d+1))),
-by at most half a pixel.
+With ``cost.subpixel``, a parabola through the scores at d-1, d, d+1 moves the winner to its
+vertex, d + (s(d+1) - s(d-1)) / (2 (2 s(d) - s(d-1) - s(d+1))), by at most half a pixel. The scores
+are the candidates' own when both neighbours took part in the WTA; otherwise, with
+``cost.subpixel_every_segment``, all three are FIS(NCC(d'), alpha NMI(winner) + (1 - alpha)
+IGSAD(d')) — the winner's NMI stands in for the one the firmware did not compute (docs/algorithm.md 4).
 
 The FIS is scikit-fuzzy's (:class:`fuzzyctl.fis.Fis`): ``engine="skfuzzy"`` runs
 ``ControlSystemSimulation`` on every distinct input pair; ``engine="fast"`` (default) runs the
@@ -118,6 +120,7 @@ def fis_winner_take_all(
     engine: str = "fast",
     subpixel: bool = False,
     lut_size: int = 257,
+    subpixel_every_segment: bool = False,
 ) -> SegmentDecision:
     """argmax over the candidates of FIS(DC1, DC2), eq. (8)-(12); ties -> smaller d."""
     cand = np.sort(select_candidates(costs, fis, nmi_candidates, engine, lut_size), axis=1)  # ascending d
@@ -131,6 +134,8 @@ def fis_winner_take_all(
     n, D = costs.ncc.shape
     all_scores = np.full((n, D), np.nan)  # NaN = not a candidate
     all_scores[rows, cand] = score
+    if subpixel and subpixel_every_segment:
+        all_scores = _fill_missing_neighbours(all_scores, winner, costs, fis, alpha, engine)
     offset = subpixel_offset(all_scores, winner) if subpixel else np.zeros(n)
     return SegmentDecision(
         disparity=winner,
@@ -140,6 +145,27 @@ def fis_winner_take_all(
         dc2=dc2[r, best],
         candidates=cand,
     )
+
+
+def _fill_missing_neighbours(
+    scores: np.ndarray, winner: np.ndarray, costs: SegmentCosts, fis: Fis, alpha: float, engine: str
+) -> np.ndarray:
+    """Scores with d-1, d, d+1 of every interior winner whose two neighbours were not both
+    candidates replaced by FIS(NCC(d'), alpha NMI(winner) + (1 - alpha) IGSAD(d'))."""
+    n, D = scores.shape
+    r = np.arange(n)
+    inner = (winner > 0) & (winner < D - 1)
+    wm, wp = np.clip(winner - 1, 0, D - 1), np.clip(winner + 1, 0, D - 1)
+    need = inner & (np.isnan(scores[r, wm]) | np.isnan(scores[r, wp]))
+    if not need.any():
+        return scores
+    out = scores.copy()
+    s, w = r[need], winner[need]
+    cols = np.stack([w - 1, w, w + 1], axis=1)
+    nmi_w = costs.nmi[s, w][:, None]
+    dc2 = alpha * nmi_w + (1.0 - alpha) * costs.igsad[s[:, None], cols]
+    out[s[:, None], cols] = fis_scores(fis, costs.ncc[s[:, None], cols], dc2, engine)
+    return out
 
 
 def subpixel_offset(scores: np.ndarray, winner: np.ndarray) -> np.ndarray:
