@@ -151,10 +151,10 @@ TEST(Wta, RejectsCostsWithoutCandidateRecords) {
   c.candidates_per_segment = 1;
   c.candidates = {{0, 0, 0, 1}, {0, 0, 0, 2}};
   c.ncc.clear();
-  EXPECT_THROW(fis_winner_take_all(c, lut, CostParams{}), std::invalid_argument);
-  CostParams no_fallback;
-  no_fallback.subpixel_every_segment = false;
-  EXPECT_NO_THROW(fis_winner_take_all(c, lut, no_fallback));
+  CostParams every;
+  every.subpixel_every_segment = true;
+  EXPECT_THROW(fis_winner_take_all(c, lut, every), std::invalid_argument);
+  EXPECT_NO_THROW(fis_winner_take_all(c, lut, CostParams{}));  // default: off
 }
 
 // paint_segments (row-wise table read through the labels) against painting the runs segment by

@@ -24,7 +24,7 @@ struct CostParams {
   int nmi_bins = 16;        // eq. (2)-(4)
   int nmi_candidates = 8;   // 0 = exhaustive
   bool subpixel = true;     // parabola fit on the FIS scores around the winner
-  bool subpixel_every_segment = true;  // ... also when d-1 or d+1 was not an NMI candidate (the
+  bool subpixel_every_segment = false;  // ... also when d-1 or d+1 was not an NMI candidate (the
                                        // winner's NMI stands in there; docs/algorithm.md 4)
   bool gradient_gain_compensation = true;  // scale the right gradients to the left's level (eq. 5-7)
   double gradient_gain_deadband = 0.2;     // ... when their mean magnitudes differ by more than this
