@@ -756,6 +756,7 @@ LoopResult RobotLoop::run() {
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
+      std::vector<int> mover_ids;  // the tracks that pass the moving test ([tracker] miss_movers_only)
       std::size_t k = 0;
       for (const auto& tr : trs) {
         if (!tr.confirmed) continue;
@@ -793,7 +794,9 @@ LoopResult RobotLoop::run() {
             return false;
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
-        if (!moving()) {
+        const bool is_mover = moving();
+        if (is_mover) mover_ids.push_back(tr.id);
+        if (!is_mover) {
           // Safety net: a confirmed track measured within near_track_max_age_s near the robot is an
           // obstacle where it is now, whether or not its motion is trusted (a real mover that was
           // re-acquired as a new track has not "travelled" yet). Static, at its own radius (no
@@ -833,6 +836,7 @@ LoopResult RobotLoop::run() {
         obstacles.push_back(o);
         kinds.push_back('v');
       }
+      tracker.mark_movers(mover_ids);
       // Deleted confirmed tracks (reach_lost_tracks): a mover-like track without static support that
       // the tracker deleted for visible misses of its (wrong) prediction still gives its reachable
       // set, by the same rules as a live one, until moving_max_age_s after its last measurement.
@@ -1103,7 +1107,8 @@ LoopResult RobotLoop::run() {
                      {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
                      {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
-                     {"support", support_cells(tr)}});
+                     {"support", support_cells(tr)},
+                     {"mover", tr.mover}});
     fj["tracks"] = std::move(trs);
     if (!static_meas_p.empty()) {
       json sj = json::array();

@@ -37,6 +37,8 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.confirm_hits = v.integer("tracker.confirm_hits");
   p.max_misses = v.integer("tracker.max_misses");
   p.max_coast_s = v.num("tracker.max_coast_s");
+  p.miss_sigmas = v.num("tracker.miss_sigmas");
+  p.miss_movers_only = v.flag("tracker.miss_movers_only");
   p.velocity_measurement = v.flag("tracker.velocity_measurement");
   p.max_speed_mps = v.num("tracker.max_speed_mps");
   return p;

@@ -25,6 +25,10 @@ SilhouetteCircle circle_from_silhouette(double bearing_a, double bearing_b, doub
   return c;
 }
 
+void MultiTracker::mark_movers(const std::vector<int>& ids) {
+  for (Track& tr : tracks_) tr.mover = std::find(ids.begin(), ids.end(), tr.id) != ids.end();
+}
+
 std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
                                                     const VisibilityFn& visible) {
   // 1. predict every track to t (eq. 26).
@@ -82,7 +86,20 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     Track& tr = tracks_[ti];
     const int mi = meas_of[ti];
     if (mi < 0) {
-      if (visible && visible(tr.pos())) ++tr.misses;  // out of view: coast, no miss counted
+      if (visible && visible(tr.pos())) {  // out of view: coast, no miss counted
+        bool all_in = true;
+        if (p_.miss_sigmas > 0 && (tr.mover || !p_.miss_movers_only)) {
+          // Only where the whole region the object may be in is in view does seeing nothing mean it
+          // is not there; a drifting prediction of an out-of-view mover enters the view first.
+          const auto& P = tr.kf.P();
+          const double r = p_.miss_sigmas * std::sqrt(std::max(P(0, 0), P(1, 1))) + tr.radius_m;
+          for (int k = 0; k < 8 && all_in; ++k) {
+            const double a = k * M_PI / 4.0;
+            all_in = visible(tr.pos() + Vec2{r * std::cos(a), r * std::sin(a)});
+          }
+        }
+        if (all_in) ++tr.misses;
+      }
       continue;
     }
     const ObstacleMeasurement& m = meas[mi];

@@ -218,6 +218,68 @@ TEST(Tracker, DeletedAfterKVisibleMissesButCoastsOutOfView) {
   EXPECT_TRUE(b.tracks().empty());
 }
 
+// [tracker] miss_sigmas: a mover that left the view coasts with growing uncertainty; when its
+// prediction comes back into view but the region it may be in does not lie in view as a whole, an
+// empty frame is no evidence that it is gone (seed 13, scenarios 30 and 33: the prediction of an
+// over-estimated velocity drifted into the view, the track was deleted, and the robot turned into
+// the mover beside it 2-3 s later).
+TEST(Tracker, MissSigmasCountsAMissOnlyWhenTheWholeUncertaintyDiscIsInView) {
+  TrackerParams tp;
+  tp.confirm_hits = 2;
+  tp.max_misses = 4;
+  tp.max_coast_s = 20.0;
+  // the view: x > 1 (the robot looks along +x from the origin)
+  const auto in_view = [](Vec2 p) { return p.x > 1.0; };
+  tp.miss_movers_only = false;  // every track (session 20's form)
+  auto run = [&](double miss_sigmas, int coast_frames) {
+    tp.miss_sigmas = miss_sigmas;
+    MultiTracker mt(tp);
+    // seen moving at +0.5 m/s in y while in view, then out of view (x < 1) for a while
+    for (int f = 0; f < 6; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.1 * f}, 0.15, 0, 0.03}}, in_view);
+    const auto vis_none = [](Vec2) { return false; };
+    for (int f = 6; f < 6 + coast_frames; ++f) mt.step(s_to_ns(0.2 * f), {}, vis_none);
+    // now the prediction is in view again but nothing is measured there
+    for (int f = 6 + coast_frames; f < 6 + coast_frames + 6; ++f) mt.step(s_to_ns(0.2 * f), {}, in_view);
+    return mt.tracks().size();
+  };
+  EXPECT_EQ(run(0.0, 25), 0u);  // the centre alone: 4 visible misses delete it
+  EXPECT_EQ(run(2.0, 25), 1u);  // after 5 s of coasting its 2-sigma disc reaches out of view: kept
+  // just after losing it the disc is small and lies in view: deleted as before
+  EXPECT_EQ(run(2.0, 0), 0u);
+}
+
+// [tracker] miss_movers_only: the disc rule is kept for the tracks the loop marked as movers; a
+// static obstacle's track (never marked) is deleted by misses at its prediction as before, so its
+// phantom does not outlive it (session 20: the surviving static phantoms closed gaps).
+TEST(Tracker, MissMoversOnlyKeepsTheDiscRuleForMarkedMoversAlone) {
+  TrackerParams tp;
+  tp.confirm_hits = 2;
+  tp.max_misses = 4;
+  tp.max_coast_s = 20.0;
+  tp.miss_sigmas = 2.0;
+  tp.miss_movers_only = true;
+  const auto in_view = [](Vec2 p) { return p.x > 1.0; };
+  const auto vis_none = [](Vec2) { return false; };
+  auto run = [&](bool mark) {
+    MultiTracker mt(tp);
+    for (int f = 0; f < 6; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0, 0.1 * f}, 0.15, 0, 0.03}}, in_view);
+    EXPECT_EQ(mt.tracks().size(), 1u);
+    if (mark) mt.mark_movers({mt.tracks().front().id});
+    for (int f = 6; f < 31; ++f) mt.step(s_to_ns(0.2 * f), {}, vis_none);
+    for (int f = 31; f < 37; ++f) mt.step(s_to_ns(0.2 * f), {}, in_view);
+    return mt.tracks().size();
+  };
+  EXPECT_EQ(run(true), 1u);   // a marked mover: its disc reaches out of view, kept
+  EXPECT_EQ(run(false), 0u);  // unmarked: 4 visible misses at the prediction delete it
+  // marking is per step: an empty list unmarks
+  MultiTracker mt(tp);
+  mt.step(0, {{{2.0, 0.0}, 0.15, 0, 0.03}}, in_view);
+  mt.mark_movers({mt.tracks().front().id});
+  EXPECT_TRUE(mt.tracks().front().mover);
+  mt.mark_movers({});
+  EXPECT_FALSE(mt.tracks().front().mover);
+}
+
 TEST(Tracker, LostTracksRemembersADeletedConfirmedTrackUntilKeepS) {
   TrackerParams tp;
   tp.confirm_hits = 2;
@@ -325,6 +387,8 @@ TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   EXPECT_DOUBLE_EQ(t.max_speed_mps, d.max_speed_mps);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
   EXPECT_EQ(t.max_misses, d.max_misses);
+  EXPECT_DOUBLE_EQ(t.miss_sigmas, d.miss_sigmas);
+  EXPECT_EQ(t.miss_movers_only, d.miss_movers_only);
   const RobotParams r = robot_params_from(c.values), rd;
   EXPECT_NEAR(r.max_yaw_rate_radps, rd.max_yaw_rate_radps, 1e-12);
   EXPECT_NEAR(r.max_yaw_accel_radps2, rd.max_yaw_accel_radps2, 1e-12);

@@ -42,6 +42,11 @@ struct TrackerParams {
   int confirm_hits = 3;             // M: a track is confirmed after this many associated frames
   int max_misses = 5;               // K: deleted after this many consecutive *visible* misses
   double max_coast_s = 10.0;        // deleted after this long without any measurement [s]
+  double miss_sigmas = 2.0;         // a miss counts only when the disc of radius miss_sigmas x the
+                                    // predicted position std + the track's radius lies in view (all
+                                    // 8 points of its rim and its centre); 0 = the centre alone
+  bool miss_movers_only = true;     // miss_sigmas applies only to tracks the loop marked as movers
+                                    // (MultiTracker::mark_movers: its moving test, no static support)
   bool velocity_measurement = true; // z = [p; v] with v the finite difference (eq. 31-32, H = I)
   double max_speed_mps = 0.0;       // speed gate: fastest obstacle expected; a measurement further
                                     // from the track's last one than this speed (+ noise) allows is

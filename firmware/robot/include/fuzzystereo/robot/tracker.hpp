@@ -54,6 +54,7 @@ struct Track {
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
   bool updated_this_frame = false;
+  bool mover = false;           // the loop's moving test passed at its last planning step (mark_movers)
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
   Vec2 vel() const { return {kf.vx(), kf.vy()}; }
@@ -78,6 +79,10 @@ class MultiTracker {
                                         double uncertainty_max_m) const;
 
   const TrackerParams& params() const { return p_; }
+
+  // The robot loop's verdict for the next step: the tracks with these ids are movers, every other
+  // one is not (TrackerParams::miss_movers_only).
+  void mark_movers(const std::vector<int>& ids);
 
  private:
   TrackerParams p_;
