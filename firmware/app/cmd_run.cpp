@@ -330,7 +330,7 @@ void run_suite(const SuiteOptions& o) {
 
   int struck = 0;
   int solvable = 0, reached = 0, collisions = 0, blocked = 0, blocked_safe = 0, moving = 0, moving_ok = 0, gaps = 0,
-      gaps_ok = 0, errors = 0;
+      gaps_ok = 0, errors = 0, stuck = 0, stuck_ok = 0;
   std::vector<double> ratios, fps, match_ms, total_ms;
   json per = json::array();
   for (const Item& it : items) {
@@ -355,6 +355,10 @@ void run_suite(const SuiteOptions& o) {
       if (it.features.find("gap") != std::string::npos) {
         ++gaps;
         gaps_ok += ok;
+      }
+      if (r.stuck_frames > 0) {
+        ++stuck;
+        stuck_ok += ok;
       }
     }
     if (r.fps_wall > 0) fps.push_back(r.fps_wall);
@@ -386,6 +390,7 @@ void run_suite(const SuiteOptions& o) {
   std::printf("reached goal          %3d / %3d  %.1f %%   (target >= 98 %%)\n", reached, solvable, success);
   std::printf("  with moving obstacles %3d / %3d\n", moving_ok, moving);
   std::printf("  through narrow gaps   %3d / %3d\n", gaps_ok, gaps);
+  std::printf("  stuck on the way      %3d / %3d  ([loop] stuck_after_s: reached / runs that were stuck)\n", stuck_ok, stuck);
   std::printf("collisions            %3d          (target 0)\n", collisions);
   std::printf("struck while standing  %3d          (a moving obstacle from outside the camera view)\n", struck);
   std::printf("safe stop, no path    %3d / %3d  %.1f %%   (target 100 %%)\n", blocked_safe, blocked, safe);
@@ -402,6 +407,8 @@ void run_suite(const SuiteOptions& o) {
            {"moving_reached", moving_ok},
            {"gaps", gaps},
            {"gaps_reached", gaps_ok},
+           {"stuck", stuck},
+           {"stuck_reached", stuck_ok},
            {"collisions", collisions},
            {"struck", struck},
            {"blocked", blocked},

@@ -32,6 +32,7 @@
 #include "fuzzystereo/robot/odometry.hpp"
 #include "fuzzystereo/robot/params.hpp"
 #include "fuzzystereo/robot/planner.hpp"
+#include "fuzzystereo/robot/progress.hpp"
 #include "fuzzystereo/robot/static_support.hpp"
 #include "fuzzystereo/robot/tracker.hpp"
 #include "fuzzystereo/sim/world.hpp"
@@ -94,7 +95,8 @@ struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
-      meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share;
+      meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
+      stuck_exit_m;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -133,6 +135,9 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.static_meas_share = v.num("loop.static_meas_share");
   p.static_meas_drop = v.flag("loop.static_meas_drop");
   p.static_meas_min_frames = static_cast<int>(v.integer("loop.static_meas_min_frames"));
+  p.stuck_after_s = v.num("loop.stuck_after_s");
+  p.stuck_progress_m = v.num("loop.stuck_progress_m");
+  p.stuck_exit_m = v.num("loop.stuck_exit_m");
   return p;
 }
 
@@ -258,6 +263,7 @@ json LoopResult::to_json() const {
          {"min_clearance_m", min_clearance_m},
          {"front_stops", front_stops},
          {"look_turns", look_turns},
+         {"stuck_frames", stuck_frames},
          {"static_meas", static_meas},
          {"blocked_frames", blocked_frames},
          {"watchdog_trips", watchdog_trips},
@@ -500,6 +506,8 @@ LoopResult RobotLoop::run() {
   std::map<std::string, std::vector<double>> stage_ms;
   Pose2D true_pose = start, last_true = start;
   int blocked_run = 0;
+  // Progress towards the goal ([loop] stuck_after_s; robot::ProgressMonitor).
+  robot::ProgressMonitor progress({lp.stuck_after_s, lp.stuck_progress_m, lp.stuck_exit_m});
   robot::ObstacleMapParams map_params;
   map_params.remember_seen = I.pp.unseen_check_s > 0;  // [planner] unseen_check_s asks the map
   robot::ObstacleMap world_map(map_params);
@@ -749,6 +757,12 @@ LoopResult RobotLoop::run() {
     // Static world from the map; moving obstacles (confirmed, fast enough, seen often enough to
     // trust the velocity) from the tracker, grown by their position uncertainty.
     s1 = std::chrono::steady_clock::now();
+    // Stuck ([loop] stuck_after_s, robot::ProgressMonitor): no stuck_progress_m closer to the goal in
+    // stuck_after_s. The near-track circles and reachable sets say where a track that is not a trusted
+    // mover *may* be; the suites' gap timeouts are robots held off a gap by them for 35-50 s. While
+    // stuck they are left out (map cells, movers and the front stop stay).
+    const bool stuck = progress.update(t_frame - t0, robot::norm(goal - pose.pos()));
+    if (stuck) ++res.stuck_frames;
     std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m);
     // Where each planner obstacle came from (record only): m = map cell, v = moving track,
     // n = near-track net, r = reachable set of an out-of-view mover.
@@ -796,6 +810,7 @@ LoopResult RobotLoop::run() {
         };
         const bool is_mover = moving();
         if (is_mover) mover_ids.push_back(tr.id);
+        if (!is_mover && stuck) continue;
         if (!is_mover) {
           // Safety net: a confirmed track measured within near_track_max_age_s near the robot is an
           // obstacle where it is now, whether or not its motion is trusted (a real mover that was
@@ -840,7 +855,7 @@ LoopResult RobotLoop::run() {
       // Deleted confirmed tracks (reach_lost_tracks): a mover-like track without static support that
       // the tracker deleted for visible misses of its (wrong) prediction still gives its reachable
       // set, by the same rules as a live one, until moving_max_age_s after its last measurement.
-      if (lp.reach_lost_tracks && lp.near_track_reach_cap_m > 0) {
+      if (lp.reach_lost_tracks && lp.near_track_reach_cap_m > 0 && !stuck) {
         for (const auto& tr : lost_tracks.lost()) {
           const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
           if (age_s <= lp.near_track_max_age_s || age_s > lp.moving_max_age_s) continue;
@@ -1086,6 +1101,7 @@ LoopResult RobotLoop::run() {
       fj["carrot"] = {std::round(plan.carrot.x * 100) / 100, std::round(plan.carrot.y * 100) / 100};
       fj["reduced_margin"] = plan.reduced_margin;
       fj["route_kept"] = plan.route_kept;
+      fj["stuck"] = stuck;
     }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)

@@ -75,6 +75,7 @@ struct LoopResult {
   double min_clearance_m = 0;  // smallest robot-surface gap to any obstacle (sim) [m]
   int front_stops = 0;      // frames where the stop-distance failsafe held the robot
   int look_turns = 0;       // sensing actions begun ([loop] look_before_turn_m)
+  int stuck_frames = 0;     // frames planned without near-track circles and reachable sets ([loop] stuck_after_s)
   int static_meas = 0;      // detections found static ([loop] static_meas_age_s)
   int blocked_frames = 0;   // frames where the planner found no path
   int watchdog_trips = 0;

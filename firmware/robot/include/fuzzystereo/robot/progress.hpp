@@ -1,0 +1,36 @@
+// Progress towards the goal: is the robot stuck? ([loop] stuck_after_s, docs/robot.md "Session 23").
+// The suites' gap timeouts are robots held 35-50 s in front of a gap by the circles that say where a
+// track that is not a trusted mover may be (near-track circles, reachable sets). When the robot has
+// not got `progress_m` closer to the goal (straight line) for `after_s`, the loop plans without
+// them; the mode holds until the robot is `exit_m` closer than its best distance before the mode
+// began, so approaching the gap alone does not bring the circles back and turn the route away again.
+#pragma once
+#include <cstdint>
+#include <limits>
+
+namespace fs::robot {
+
+struct ProgressParams {
+  double after_s = 0.0;     // [loop] stuck_after_s (0 = never stuck)
+  double progress_m = 0.3;  // [loop] stuck_progress_m
+  double exit_m = 1.0;      // [loop] stuck_exit_m
+};
+
+class ProgressMonitor {
+ public:
+  explicit ProgressMonitor(const ProgressParams& p) : p_(p) {}
+  // One planning step at time t_ns with the robot's straight-line distance to the goal; true while
+  // the robot is stuck.
+  bool update(std::int64_t t_ns, double goal_dist_m);
+  bool stuck() const { return stuck_; }
+  double best_m() const { return best_m_; }
+
+ private:
+  ProgressParams p_;
+  double best_m_ = std::numeric_limits<double>::infinity();
+  std::int64_t best_ns_ = 0;
+  bool stuck_ = false;
+  double entry_m_ = 0.0;  // best distance when the mode began
+};
+
+}  // namespace fs::robot

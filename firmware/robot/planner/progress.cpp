@@ -1,0 +1,20 @@
+#include "fuzzystereo/robot/progress.hpp"
+
+#include <cmath>
+
+namespace fs::robot {
+
+bool ProgressMonitor::update(std::int64_t t_ns, double goal_dist_m) {
+  if (stuck_ && goal_dist_m < entry_m_ - p_.exit_m) stuck_ = false;
+  if (!std::isfinite(best_m_) || goal_dist_m < best_m_ - p_.progress_m) {
+    best_m_ = goal_dist_m;
+    best_ns_ = t_ns;
+  }
+  if (!stuck_ && p_.after_s > 0 && static_cast<double>(t_ns - best_ns_) * 1e-9 > p_.after_s) {
+    stuck_ = true;
+    entry_m_ = best_m_;
+  }
+  return stuck_;
+}
+
+}  // namespace fs::robot
