@@ -20,6 +20,7 @@ RobotParams robot_params_from(const ConfigValues& v) {
   p.max_yaw_accel_radps2 = v.num("robot.max_yaw_accel_degps2") * kDegToRad;
   p.max_wheel_speed_mps = v.num("robot.max_wheel_speed_mps");
   p.goal_tolerance_m = v.num("robot.goal_tolerance_m");
+  p.arrive_margin_m = v.num("robot.arrive_margin_m");
   p.stop_distance_m = v.num("robot.stop_distance_m");
   p.stop_allows_turning = v.flag("robot.stop_allows_turning");
   p.odometry_accel_model = v.flag("robot.odometry_accel_model");

@@ -331,7 +331,10 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   PlanOutput out;
   const Vec2 pos = pose.pos();
   const double dist_goal = norm(goal - pos);
-  if (dist_goal <= rp_.goal_tolerance_m) {
+  // Arrival is declared arrive_margin_m inside the tolerance: the pose is the robot's own estimate,
+  // and a robot that stops on the boundary by its odometry can stand a few millimetres outside it in
+  // truth, for good (suite seed 11, scenario 59: 0.149 m by odometry, 0.154 m true, 20 s standing).
+  if (dist_goal <= std::max(0.0, rp_.goal_tolerance_m - rp_.arrive_margin_m)) {
     out.status = PlanStatus::kReached;
     out.carrot = goal;
     return out;

@@ -159,6 +159,18 @@ TEST(Planner, ReachedStops) {
   EXPECT_EQ(o.cmd.v, 0.0);
 }
 
+TEST(Planner, ArrivalIsDeclaredTheMarginInsideTheTolerance) {
+  RobotParams rp = robot();
+  rp.goal_tolerance_m = 0.15;
+  rp.arrive_margin_m = 0.03;
+  const Planner p(planner(), rp);
+  // 0.14 m from the goal: inside the tolerance, not inside the margin -> still driving.
+  EXPECT_EQ(p.plan({0.0, 0.0, 0}, {0.1, 0}, {0.14, 0.0}, {}).status, PlanStatus::kMoving);
+  EXPECT_EQ(p.plan({0.0, 0.0, 0}, {0.1, 0}, {0.11, 0.0}, {}).status, PlanStatus::kReached);
+  rp.arrive_margin_m = 0.0;
+  EXPECT_EQ(Planner(planner(), rp).plan({0.0, 0.0, 0}, {0.1, 0}, {0.14, 0.0}, {}).status, PlanStatus::kReached);
+}
+
 TEST(Planner, EnclosedGoalIsBlockedWithStop) {
   std::vector<CircleObstacle> ring;
   for (int i = 0; i < 16; ++i) ring.push_back({{3 + std::cos(i * M_PI / 8), std::sin(i * M_PI / 8)}, 0.15, {}});

@@ -24,6 +24,7 @@ struct RobotParams {
   double max_yaw_accel_radps2 = 6.283185307179586;  // [rad/s^2] (file: max_yaw_accel_degps2 = 360)
   double max_wheel_speed_mps = 0.6;   // wheel surface speed at motor duty 1.0 [m/s]
   double goal_tolerance_m = 0.15;     // goal reached when the centre is this close [m]
+  double arrive_margin_m = 0.03;      // the planner declares arrival this far inside goal_tolerance_m [m]
   double stop_distance_m = 0.05;      // failsafe: free gap in front below which forward motion stops [m]
   bool stop_allows_turning = true;    // failsafe stop still lets the robot turn on the spot
   bool odometry_accel_model = true;   // commanded odometry (no wheel encoders) integrates the wheels of
