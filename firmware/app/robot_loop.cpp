@@ -96,7 +96,7 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m;
+      stuck_exit_m, blocked_confirm_range_m;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -138,6 +138,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.stuck_after_s = v.num("loop.stuck_after_s");
   p.stuck_progress_m = v.num("loop.stuck_progress_m");
   p.stuck_exit_m = v.num("loop.stuck_exit_m");
+  p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
   return p;
 }
 
@@ -763,10 +764,15 @@ LoopResult RobotLoop::run() {
     // stuck they are left out (map cells, movers and the front stop stay).
     const bool stuck = progress.update(t_frame - t0, robot::norm(goal - pose.pos()));
     if (stuck) ++res.stuck_frames;
-    std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m);
-    // Where each planner obstacle came from (record only): m = map cell, v = moving track,
-    // n = near-track net, r = reachable set of an out-of-view mover.
+    // Map cells hit only from farther than blocked_confirm_range_m are planned around but cannot
+    // make the final "blocked" verdict (CircleObstacle::unconfirmed, planner.cpp).
+    std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m, lp.blocked_confirm_range_m);
+    // Where each planner obstacle came from (record only): m = map cell, f = map cell seen only
+    // from afar (unconfirmed), v = moving track, n = near-track net, r = reachable set of an
+    // out-of-view mover.
     std::string kinds(obstacles.size(), 'm');
+    for (std::size_t i = 0; i < obstacles.size(); ++i)
+      if (obstacles[i].unconfirmed) kinds[i] = 'f';
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();

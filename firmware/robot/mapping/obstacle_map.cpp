@@ -33,6 +33,7 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     stamp_.assign(nn, 0);
     since_ns_.assign(nn, std::numeric_limits<std::int64_t>::max());
     frames_hit_.assign(nn, 0);
+    nearest_hit_.assign(nn, std::numeric_limits<float>::infinity());
     if (p_.remember_seen) seen_ns_.assign(nn, std::numeric_limits<std::int64_t>::min());
     first_scan_ns_ = scan.t_ns;
     init_ = true;
@@ -49,14 +50,20 @@ void ObstacleMap::integrate(const CameraScan& scan) {
     sy_[i] += static_cast<float>((h.y - sy_[i]) / k);
     nhit_[i] = k;
     if (p_.remember_seen) seen_ns_[i] = scan.t_ns;
-    if (stamp_[i] == frame_) continue;
+    const float range = static_cast<float>(norm(h - scan.pose.pos()));
+    if (stamp_[i] == frame_) {
+      nearest_hit_[i] = std::min(nearest_hit_[i], range);
+      continue;
+    }
     stamp_[i] = frame_;
     const bool was_occupied = logodds_[i] > static_cast<float>(p_.l_occupied);
     logodds_[i] = std::min(static_cast<float>(p_.l_max), logodds_[i] + static_cast<float>(p_.hit));
     if (!was_occupied && logodds_[i] > static_cast<float>(p_.l_occupied)) {
       since_ns_[i] = scan.t_ns;
       frames_hit_[i] = 0;
+      nearest_hit_[i] = std::numeric_limits<float>::infinity();
     }
+    nearest_hit_[i] = std::min(nearest_hit_[i], range);
     if (frames_hit_[i] < 0xffff) ++frames_hit_[i];
   }
   // 2. free space along the rays: cells in the view, nearer than their column's free range
@@ -104,7 +111,15 @@ std::int64_t ObstacleMap::last_seen_ns(Vec2 p) const {
   return seen_ns_[static_cast<std::size_t>(iy) * n_ + ix];
 }
 
-std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m) const {
+double ObstacleMap::nearest_hit_m(Vec2 p) const {
+  int ix, iy;
+  if (!init_ || !cell_of(p, ix, iy)) return std::numeric_limits<double>::infinity();
+  const std::size_t i = static_cast<std::size_t>(iy) * n_ + ix;
+  if (logodds_[i] <= static_cast<float>(p_.l_occupied)) return std::numeric_limits<double>::infinity();
+  return nearest_hit_[i];
+}
+
+std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m, double confirm_range_m) const {
   std::vector<CircleObstacle> out;
   if (!init_) return out;
   int x0, y0, x1, y1;
@@ -115,7 +130,9 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m)
       if (logodds_[i] <= static_cast<float>(p_.l_occupied)) continue;
       const Vec2 p{sx_[i], sy_[i]};
       if (norm(p - centre) > radius_m) continue;
-      out.push_back({p, 0.5 * p_.cell_m, {}});
+      CircleObstacle o{p, 0.5 * p_.cell_m, {}};
+      o.unconfirmed = confirm_range_m > 0 && nearest_hit_[i] > confirm_range_m;
+      out.push_back(o);
     }
   return out;
 }

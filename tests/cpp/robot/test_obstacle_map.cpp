@@ -41,6 +41,37 @@ TEST(ObstacleMap, HitsBecomeOccupiedAtTheMeanOfTheirPoints) {
   EXPECT_EQ(map.obstacles({2.0, 0.5}, 0.1).size(), 1u);
 }
 
+// A cell remembers the nearest range it was hit from since it became occupied; obstacles() marks it
+// unconfirmed when that is beyond the confirmation range. A cell cleared and hit again starts over.
+TEST(ObstacleMap, CellsSeenOnlyFromAfarAreUnconfirmed) {
+  ObstacleMap map;
+  CameraScan far = scan_at({0, 0, 0}, 0.0);
+  far.hits = {{4.01, 0.01}};
+  map.integrate(far);
+  EXPECT_NEAR(map.nearest_hit_m({4.01, 0.01}), 4.01, 1e-3);
+  auto obs = map.obstacles({0, 0}, 5.0, 3.0);
+  ASSERT_EQ(obs.size(), 1u);
+  EXPECT_TRUE(obs[0].unconfirmed);
+  EXPECT_FALSE(map.obstacles({0, 0}, 5.0, 0.0)[0].unconfirmed);  // 0 = off
+  EXPECT_FALSE(map.obstacles({0, 0}, 5.0, 4.5)[0].unconfirmed);
+  // the robot comes to 2 m and hits it again: confirmed
+  CameraScan near = scan_at({2.0, 0, 0}, 0.0);
+  near.hits = {{4.02, 0.02}};
+  map.integrate(near);
+  EXPECT_NEAR(map.nearest_hit_m({4.01, 0.01}), 2.02, 1e-3);
+  EXPECT_FALSE(map.obstacles({0, 0}, 5.0, 3.0)[0].unconfirmed);
+  // seen through from 2 m until it is free (log-odds floor -2), then hit from 4 m until it is
+  // occupied again (three frames): unconfirmed again
+  CameraScan clear = scan_at({2.0, 0, 0}, 4.0);
+  for (int k = 0; k < 20; ++k) map.integrate(clear);
+  EXPECT_TRUE(map.obstacles({0, 0}, 5.0, 3.0).empty());
+  EXPECT_TRUE(std::isinf(map.nearest_hit_m({4.01, 0.01})));
+  for (int k = 0; k < 3; ++k) map.integrate(far);
+  obs = map.obstacles({0, 0}, 5.0, 3.0);
+  ASSERT_EQ(obs.size(), 1u);
+  EXPECT_TRUE(obs[0].unconfirmed);
+}
+
 // occupied_before: a static surface seen from t = 0 supports a track that starts at 2 s; a mover's
 // surface cells, occupied only when it arrives (3 s), do not support its track (first measured at
 // 2.5 s, 1 m away); a cell that was cleared and hit again counts from the new hit.

@@ -335,6 +335,36 @@ TEST(Planner, TransientCirclesDoNotDecideBlocked) {
   EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, {4, 0}, obs).status, PlanStatus::kBlocked);
 }
 
+// Map cells seen only from afar ([loop] blocked_confirm_range_m) that cover the goal point: the
+// global search leaves them out (the local planner still keeps the robot clear of them), so they
+// cannot make the safe stop; the robot drives on to see them nearer. The same cells confirmed from near
+// range block, and unconfirmed cells of a ring around the goal (not on it) still block.
+TEST(Planner, UnconfirmedMapCellsOnTheGoalDoNotDecideBlocked) {
+  const Vec2 goal{3.0, 0.0};
+  std::vector<CircleObstacle> cells;
+  for (int i = 0; i < 8; ++i) {
+    CircleObstacle c{goal + Vec2{0.12 * std::cos(i * M_PI / 4), 0.12 * std::sin(i * M_PI / 4)}, 0.025, {}};
+    c.unconfirmed = true;
+    cells.push_back(c);
+  }
+  PlannerParams pp = planner();
+  pp.ignore_goal_footprint = false;
+  const PlanOutput go = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, cells);
+  EXPECT_EQ(go.status, PlanStatus::kMoving);
+  ASSERT_FALSE(go.path.empty());
+  EXPECT_GT(go.cmd.v, 0.0);
+  for (CircleObstacle& c : cells) c.unconfirmed = false;
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, cells).status, PlanStatus::kBlocked);
+  // a ring of radius 0.8 m around the goal, seen only from afar: still blocked
+  std::vector<CircleObstacle> ring;
+  for (int i = 0; i < 24; ++i) {
+    CircleObstacle c{goal + Vec2{0.8 * std::cos(i * M_PI / 12), 0.8 * std::sin(i * M_PI / 12)}, 0.15, {}};
+    c.unconfirmed = true;
+    ring.push_back(c);
+  }
+  EXPECT_EQ(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, ring).status, PlanStatus::kBlocked);
+}
+
 // Map cells (2.5 cm circles) of depth noise around the goal point: the global search ignores what
 // covers the goal itself (the robot drives on; the local planner keeps it clear of them), but a
 // ring around the goal still blocks.

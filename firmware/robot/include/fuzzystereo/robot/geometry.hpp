@@ -36,6 +36,8 @@ struct CircleObstacle {
   Vec2 vel;         // [m/s]; zero for static obstacles
   bool transient = false;  // a place a tracked obstacle may be (near-track circle, reachable set),
                            // not a known surface: never decides "blocked" (planner.hpp)
+  bool unconfirmed = false;  // a map cell hit only from farther than the confirmation range (depth
+                             // error grows with Z^2): never decides "blocked" (planner.hpp)
   Vec2 at(double t) const { return c + t * vel; }
 };
 

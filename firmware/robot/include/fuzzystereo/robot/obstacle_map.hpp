@@ -46,8 +46,12 @@ class ObstacleMap {
   // nearer than its column's free range (and not hit this frame) is lowered.
   void integrate(const CameraScan& scan);
   // Occupied cells within `radius_m` of `centre` as static circles (at the mean of the hit points
-  // that fell into the cell, radius cell/2).
-  std::vector<CircleObstacle> obstacles(Vec2 centre, double radius_m) const;
+  // that fell into the cell, radius cell/2). confirm_range_m > 0: a cell not hit from within that
+  // range of the scan pose since it became occupied is marked CircleObstacle::unconfirmed.
+  std::vector<CircleObstacle> obstacles(Vec2 centre, double radius_m, double confirm_range_m = 0.0) const;
+  // Nearest range (scan pose to hit point) of the hits since the cell at p became occupied; +inf when
+  // the cell is not occupied or off the grid.
+  double nearest_hit_m(Vec2 p) const;
   int occupied_count() const;
   // Occupied cells whose mean hit point lies within r of c and that have been occupied without a
   // break since a scan at or before t_ns (a cell that drops below l_occupied starts again).
@@ -80,6 +84,7 @@ class ObstacleMap {
   std::vector<std::uint32_t> stamp_;  // frame of the last hit (one hit per frame)
   std::vector<std::int64_t> since_ns_;  // capture time of the scan that made the cell occupied
   std::vector<std::uint16_t> frames_hit_;  // frames with a hit since the cell became occupied
+  std::vector<float> nearest_hit_;          // nearest hit range since the cell became occupied [m]
   std::vector<std::int64_t> seen_ns_;   // capture time of the last scan that saw the cell
   std::uint32_t frame_ = 0;
   std::int64_t first_scan_ns_ = 0;
