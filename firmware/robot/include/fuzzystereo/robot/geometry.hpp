@@ -37,7 +37,8 @@ struct CircleObstacle {
   bool transient = false;  // a place a tracked obstacle may be (near-track circle, reachable set),
                            // not a known surface: never decides "blocked" (planner.hpp)
   bool unconfirmed = false;  // a map cell hit only from farther than the confirmation range (depth
-                             // error grows with Z^2): never decides "blocked" (planner.hpp)
+                             // error grows with Z^2): left out of the global search where it covers
+                             // the goal, so it never decides "blocked" there (planner.cpp)
   Vec2 at(double t) const { return c + t * vel; }
 };
 
