@@ -49,23 +49,18 @@ bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, 
     // surface: seed-11 suite, scenarios 23 and 74 stopped "blocked" beside a mover's near-track
     // circle and a ghost track's reachable set).
     if (static_only && pp.transient_not_blocking && o.transient) continue;
-    // Map cells on the goal seen only from afar ([loop] blocked_confirm_range_m): at 4-5.5 m a
-    // disparity error of a quarter pixel is 0.25-0.5 m, and single false detections there left cells
-    // covering the goal that the camera could not clear from where the robot stood (suites 13-35,
-    // 15-4, 15-45: "blocked" stops 4-5.6 m from an empty goal). The robot drives on and sees them
-    // nearer. Only those that cover the goal point: a ring of obstacles around the goal, whose far
-    // side is seen only from afar through the near side's gaps, must still stop the robot (every
-    // unconfirmed cell left out: seed 11, b0 and b1 timed out at the ring instead).
-    // Left out of every try, not only the static-only ones: with them the first tries fail every
-    // frame, and the robot follows the static-only route, which ignores movers (suite 15-4: 10 s
-    // "waiting" on that route, then a slow mover beside it).
-    if (o.unconfirmed && norm(o.c - goal) < o.r + inflate) continue;
     // An obstacle that covers the goal point itself (inflated) is left to the local planner: the
-    // global search asks whether the goal's surroundings can be reached. A few map cells of depth
-    // noise seen at the goal from 4 m away otherwise make it unreachable (seed 11, scenario 74:
-    // cells 0.03-0.2 m from the goal, the robot stopped "blocked" 4.5 m from it). An enclosed
-    // goal (a ring around it) is still found: its obstacles do not cover the goal point.
-    if (pp.ignore_goal_footprint && norm(o.c - goal) < o.r + inflate) continue;
+    // global search then asks whether the goal's surroundings can be reached; a ring round the goal
+    // is still found, its obstacles do not cover the goal point. Which obstacles:
+    // - map cells seen only from afar ([loop] blocked_confirm_range_m, the default): at 4-5.5 m a
+    //   quarter-pixel disparity error is 0.25-0.5 m, and single false detections there left cells
+    //   on the goal that the camera could not clear from where the robot stood (suites 13-35, 15-4,
+    //   15-45: "blocked" stops 4-5.6 m from an empty goal); the robot drives on and sees them nearer.
+    //   Left out of every try: out of the static-only ones only, the first tries fail every frame
+    //   and the robot follows the static-only route, which ignores movers (15-4);
+    // - with [planner] ignore_goal_footprint (off), every obstacle there (seed 11, scenario 74:
+    //   cells 0.03-0.2 m from the goal stopped the robot 4.5 m from it; confirmed surfaces too).
+    if ((o.unconfirmed || pp.ignore_goal_footprint) && norm(o.c - goal) < o.r + inflate) continue;
     g.fill_disc(o.c, o.r + inflate);
   }
   // The robot may already be inside an inflated disc (margin violated): free its own cell

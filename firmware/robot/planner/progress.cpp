@@ -1,12 +1,10 @@
 #include "fuzzystereo/robot/progress.hpp"
 
-#include <cmath>
-
 namespace fs::robot {
 
 bool ProgressMonitor::update(std::int64_t t_ns, double goal_dist_m) {
   if (stuck_ && goal_dist_m < entry_m_ - p_.exit_m) stuck_ = false;
-  if (!std::isfinite(best_m_) || goal_dist_m < best_m_ - p_.progress_m) {
+  if (goal_dist_m < best_m_ - p_.progress_m) {  // best_m_ starts at +inf
     best_m_ = goal_dist_m;
     best_ns_ = t_ns;
   }

@@ -22,7 +22,6 @@ class ProgressMonitor {
   // One planning step at time t_ns with the robot's straight-line distance to the goal; true while
   // the robot is stuck.
   bool update(std::int64_t t_ns, double goal_dist_m);
-  bool stuck() const { return stuck_; }
   double best_m() const { return best_m_; }
 
  private:
