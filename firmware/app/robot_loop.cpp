@@ -97,6 +97,7 @@ struct LoopParams {
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
       stuck_exit_m, blocked_confirm_range_m;
+  bool stuck_keep_unseen;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres;
@@ -138,6 +139,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.stuck_after_s = v.num("loop.stuck_after_s");
   p.stuck_progress_m = v.num("loop.stuck_progress_m");
   p.stuck_exit_m = v.num("loop.stuck_exit_m");
+  p.stuck_keep_unseen = v.flag("loop.stuck_keep_unseen");
   p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
   return p;
 }
@@ -761,7 +763,8 @@ LoopResult RobotLoop::run() {
     // Stuck ([loop] stuck_after_s, robot::ProgressMonitor): no stuck_progress_m closer to the goal in
     // stuck_after_s. The near-track circles and reachable sets say where a track that is not a trusted
     // mover *may* be; the suites' gap timeouts are robots held off a gap by them for 35-50 s. While
-    // stuck they are left out (map cells, movers and the front stop stay).
+    // stuck they are left out (map cells, movers and the front stop stay) — with [loop]
+    // stuck_keep_unseen only for the tracks inside the camera's view (docs/robot.md, session 25).
     const bool stuck = progress.update(t_frame - t0, robot::norm(goal - pose.pos()));
     if (stuck) ++res.stuck_frames;
     // Map cells hit only from farther than blocked_confirm_range_m are planned around but cannot
@@ -816,7 +819,8 @@ LoopResult RobotLoop::run() {
         };
         const bool is_mover = moving();
         if (is_mover) mover_ids.push_back(tr.id);
-        if (!is_mover && stuck) continue;
+        // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
+        if (!is_mover && robot::stuck_drops_track_circle(stuck, lp.stuck_keep_unseen, pose, tr.pos(), half_fov - 0.05)) continue;
         if (!is_mover) {
           // Safety net: a confirmed track measured within near_track_max_age_s near the robot is an
           // obstacle where it is now, whether or not its motion is trusted (a real mover that was

@@ -48,5 +48,30 @@ TEST(Progress, TheModeHoldsUntilTheRobotIsExitCloserThanBefore) {
   EXPECT_TRUE(m.update(15 * kS, 3.2));
 }
 
+// [loop] stuck_keep_unseen: while stuck, only tracks the camera looks at lose their circles.
+TEST(Progress, StuckDropsCirclesOnlyInViewWithKeepUnseen) {
+  const Pose2D robot{1.0, 2.0, M_PI / 2};  // facing +y
+  const double half_fov = 50.0 * M_PI / 180.0;
+  const Vec2 ahead{1.0, 3.0}, left_front{0.4, 3.0}, beside{0.0, 2.1}, behind{1.1, 1.0};
+  // Not stuck: nothing is dropped, whatever the mode.
+  for (bool keep : {false, true})
+    for (Vec2 p : {ahead, beside, behind}) EXPECT_FALSE(stuck_drops_track_circle(false, keep, robot, p, half_fov));
+  // Stuck, session-23 rule: every track's circle goes.
+  for (Vec2 p : {ahead, left_front, beside, behind}) EXPECT_TRUE(stuck_drops_track_circle(true, false, robot, p, half_fov));
+  // Stuck, keep_unseen: ahead (0 deg) and left-front (31 deg) are in view and go; beside (84 deg)
+  // and behind (174 deg) keep theirs.
+  EXPECT_TRUE(stuck_drops_track_circle(true, true, robot, ahead, half_fov));
+  EXPECT_TRUE(stuck_drops_track_circle(true, true, robot, left_front, half_fov));
+  EXPECT_FALSE(stuck_drops_track_circle(true, true, robot, beside, half_fov));
+  EXPECT_FALSE(stuck_drops_track_circle(true, true, robot, behind, half_fov));
+  // The view edge, across the +-pi wrap: a robot facing -x (yaw pi) sees (-1, +-0.5) at 26.6 deg
+  // either side, and not (0, +-2) at 63 deg.
+  const Pose2D west{0.0, 0.0, M_PI};
+  EXPECT_TRUE(stuck_drops_track_circle(true, true, west, {-1.0, 0.5}, half_fov));
+  EXPECT_TRUE(stuck_drops_track_circle(true, true, west, {-1.0, -0.5}, half_fov));
+  EXPECT_FALSE(stuck_drops_track_circle(true, true, west, {-1.0, 2.0}, half_fov));
+  EXPECT_FALSE(stuck_drops_track_circle(true, true, west, {-1.0, -2.0}, half_fov));
+}
+
 }  // namespace
 }  // namespace fs::robot

