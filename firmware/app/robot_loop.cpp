@@ -747,10 +747,9 @@ LoopResult RobotLoop::run() {
       world_map.integrate(scan);
     const double half_fov = std::atan2(0.5 * gl.width, I.calib.focal_px);
     const auto visible = [&](Vec2 p) {
-      const Vec2 d = p - pose.pos();
-      const double r = robot::norm(d);
+      const double r = robot::norm(p - pose.pos());
       if (r < scan.min_range_m + 0.3 || r > lp.map_range_m) return false;
-      return std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov - 0.05;
+      return std::fabs(robot::bearing_of(pose, p)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, [&](Vec2 p) { return !perception_fault && visible(p); });
     if (lp.reach_lost_tracks || lp.look_before_turn_m > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
@@ -899,8 +898,7 @@ LoopResult RobotLoop::run() {
     // texture, too near) the map and the front stop decide; the rule is about turning into the sides.
     if (I.pp.unseen_check_s > 0)
       ctx.recently_seen = [&](Vec2 p) {
-        const Vec2 d = p - pose.pos();
-        if (std::fabs(robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw)) < half_fov) return true;
+        if (std::fabs(robot::bearing_of(pose, p)) < half_fov) return true;
         return world_map.last_seen_ns(p) >= seen_after_ns;
       };
     const robot::PlanOutput plan = planner.plan(plan_pose, mixer.last(), goal, obstacles, ctx);
@@ -919,8 +917,7 @@ LoopResult RobotLoop::run() {
     const auto sensing_action = [&](BodyTwist cmd) {
       const std::int64_t now_ns = t_frame - t0;
       if (look_id != 0) {
-        const Vec2 d = look_p - pose.pos();
-        const double b = robot::wrap_angle(std::atan2(d.y, d.x) - pose.yaw);
+        const double b = robot::bearing_of(pose, look_p);
         if (std::fabs(b) >= 0.5 * half_fov && now_ns - look_t0_ns < robot::s_to_ns(3.0))
           return BodyTwist{0.0, b > 0 ? kScanYawRate : -kScanYawRate};
         looked_ids.push_back(look_id);

@@ -484,9 +484,8 @@ bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap
 bool look_before_turn(const Pose2D& pose, const BodyTwist& cmd, Vec2 last_p, double half_fov_rad, double near_m,
                       double yaw_rate, BodyTwist& look) {
   if (cmd.v <= 0.02 || std::fabs(cmd.omega) <= 0.1) return false;
-  const Vec2 d = last_p - pose.pos();
-  if (norm(d) > near_m) return false;
-  const double bearing = wrap_angle(std::atan2(d.y, d.x) - pose.yaw);
+  if (norm(last_p - pose.pos()) > near_m) return false;
+  const double bearing = bearing_of(pose, last_p);
   if (std::fabs(bearing) < half_fov_rad || bearing * cmd.omega <= 0.0) return false;
   look = {0.0, bearing > 0.0 ? yaw_rate : -yaw_rate};
   return true;

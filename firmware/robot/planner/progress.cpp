@@ -1,5 +1,7 @@
 #include "fuzzystereo/robot/progress.hpp"
 
+#include <cmath>
+
 namespace fs::robot {
 
 bool ProgressMonitor::update(std::int64_t t_ns, double goal_dist_m) {
@@ -18,8 +20,7 @@ bool ProgressMonitor::update(std::int64_t t_ns, double goal_dist_m) {
 bool stuck_drops_track_circle(bool stuck, bool keep_unseen, const Pose2D& robot, Vec2 track_pos, double half_fov_rad) {
   if (!stuck) return false;
   if (!keep_unseen) return true;
-  const Vec2 d = track_pos - robot.pos();
-  return std::fabs(wrap_angle(std::atan2(d.y, d.x) - robot.yaw)) < half_fov_rad;
+  return std::fabs(bearing_of(robot, track_pos)) < half_fov_rad;
 }
 
 }  // namespace fs::robot

@@ -27,6 +27,9 @@ inline double wrap_angle(double a) {
   return a <= -M_PI ? a + 2.0 * M_PI : a;
 }
 
+// Bearing of point q from the robot at p, relative to its heading, in (-pi, pi] [rad].
+inline double bearing_of(const Pose2D& p, Vec2 q) { return wrap_angle(std::atan2(q.y - p.y, q.x - p.x) - p.yaw); }
+
 // Obstacle for planning: a circle at time 0 moving with constant velocity (predicted position at
 // time t is c + t * vel). Oriented boxes are given to the planner as their bounding circle
 // (conservative; see docs/robot.md).
