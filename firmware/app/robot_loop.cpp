@@ -605,6 +605,10 @@ LoopResult RobotLoop::run() {
     ImageU8 gl, gr;
     cv::Mat left_bgr;
     sim::RenderResult rr;
+    // The simulated robot's pose when this frame is taken (the record's true_pose; true_pose itself
+    // moves on through the actuation below, and logging it there put it one control period after the
+    // frame's odometry pose and detections).
+    Pose2D true_at_capture = true_pose;
     {
       const auto s0 = std::chrono::steady_clock::now();
       if (I.world) {
@@ -612,6 +616,7 @@ LoopResult RobotLoop::run() {
           I.sim_motors->advance_to(clock.now_ns() - t0);
           true_pose = I.sim_motors->pose();
         }
+        true_at_capture = true_pose;
         rr = I.world->render(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, t_s, I.cfg.matcher.runtime.threads);
         gl = rgb_to_gray(rr.left);
         gr = rgb_to_gray(rr.right);
@@ -664,7 +669,15 @@ LoopResult RobotLoop::run() {
     feed(clock.now_ns());
     // Commanded odometry up to the capture: the frame's detections are placed from the pose the robot
     // had when it was taken (as on the simulated clock), not after the processing.
-    if (odom_model) odom_advance(clock.now_ns());
+    {
+      const std::int64_t capture_ns = clock.now_ns();
+      if (odom_model) odom_advance(capture_ns);
+      if (!sim_clock && I.sim_motors && !I.world) {  // replay with simulated motors on the wall clock
+        I.sim_motors->advance_to(capture_ns - t0);
+        true_pose = I.sim_motors->pose();
+        true_at_capture = true_pose;
+      }
+    }
 
     // ---- match + refine ----
     auto s1 = std::chrono::steady_clock::now();
@@ -1093,7 +1106,7 @@ LoopResult RobotLoop::run() {
             {"status", held ? "held" : perception_halt ? "perception_stop" : (plan.evading ? "evading" : robot::to_string(plan.status))},
             {"front_stop", ahead},
             {"map_cells", world_map.occupied_count()}};
-    if (I.world || I.sim_motors) fj["true_pose"] = {true_pose.x, true_pose.y, true_pose.yaw};
+    if (I.world || I.sim_motors) fj["true_pose"] = {true_at_capture.x, true_at_capture.y, true_at_capture.yaw};
     if (perception_fault) fj["perception"] = health.fault();
     if (!opt.record_dir.empty() && frame % 10 == 0) {
       json mj = json::array();

@@ -61,6 +61,11 @@ def test_recorded_run_makes_a_report(firmware_bin, common_dir, tmp_path):
     assert [f["frame"] for f in frames] == list(range(6))
     assert all({"pose", "true_pose", "cmd", "wheels", "detections", "tracks", "stage_ms"} <= set(f) for f in frames)
     assert frames[-1]["true_pose"][0] > frames[0]["true_pose"][0]  # it drives towards the goal (+x)
+    # true_pose is the simulated robot's pose when the frame was taken, as `pose` (odometry from the
+    # simulated wheels, exact to < 1 mm here); before session 26 it was logged after the actuation,
+    # one control period later (0.24 rad of the look-around turn off the frame's yaw).
+    for f in frames:
+        assert all(abs(a - b) < 0.005 for a, b in zip(f["pose"], f["true_pose"])), (f["frame"], f["pose"], f["true_pose"])
     assert any(f["detections"] for f in frames)  # the crate 2.5 m ahead is seen
     assert (rec / "frames" / "000000_overlay.png").is_file() and (rec / "frames" / "000005_disp.png").is_file()
     result = json.loads((tmp_path / "r.json").read_text())
