@@ -100,7 +100,7 @@ struct LoopParams {
   bool stuck_keep_unseen;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
-      silhouette_centres;
+      silhouette_centres, ray_centres;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -131,6 +131,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
   p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
   p.silhouette_centres = v.flag("loop.silhouette_centres");
+  p.ray_centres = v.flag("loop.ray_centres");
   p.seen_max_age_s = v.num("loop.seen_max_age_s");
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
   p.static_meas_share = v.num("loop.static_meas_share");
@@ -235,6 +236,12 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
           std::atan2(ea.left, ea.fwd), std::atan2(eb.left, eb.fwd), std::hypot(g.fwd, g.left));
       m.radius_m = sc.radius_m;
       m.p = to_world(sc.centre.x, sc.centre.y);
+    } else if (lp.ray_centres) {
+      // Ray model (robot::ray_centre): the camera-axis model's radius, the centre behind the front
+      // along the ray through the box centre.
+      m.radius_m = 0.5 * width_m;
+      const Vec2 c = robot::ray_centre({g.fwd, g.left}, m.radius_m);
+      m.p = to_world(c.x, c.y);
     } else {
       // Camera-axis model (the default): half the box width at the front depth, the centre that far
       // behind the front along the camera's forward axis. Biased towards the image centre by about

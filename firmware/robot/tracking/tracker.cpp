@@ -25,6 +25,12 @@ SilhouetteCircle circle_from_silhouette(double bearing_a, double bearing_b, doub
   return c;
 }
 
+Vec2 ray_centre(Vec2 front, double radius_m) {
+  const double b = std::atan2(front.y, front.x);
+  const double back = radius_m * std::cos(b);
+  return {front.x + back * std::cos(b), front.y + back * std::sin(b)};
+}
+
 void MultiTracker::mark_movers(const std::vector<int>& ids) {
   for (Track& tr : tracks_) tr.mover = std::find(ids.begin(), ids.end(), tr.id) != ids.end();
 }

@@ -37,6 +37,14 @@ struct SilhouetteCircle {
 };
 SilhouetteCircle circle_from_silhouette(double bearing_a, double bearing_b, double front_range_m);
 
+// Ray model ([loop] ray_centres): the centre of a round obstacle whose visible front, on the ray
+// through its box centre, lies at `front` (camera ground-plane frame, x forward, y left) and whose
+// box is 2 x radius_m wide at the front's depth: behind the front *along that ray* by
+// radius_m x cos(bearing) (at bearing b the box of a circle is ~1 / cos(b) wider than its diameter at
+// that depth). The camera-axis model (the default) steps radius_m along the forward axis instead,
+// which leaves out ~r sin(b) of the lateral offset (docs/robot.md "Session 12", "Session 26").
+Vec2 ray_centre(Vec2 front, double radius_m);
+
 struct Track {
   int id = 0;
   CvKalman kf;
