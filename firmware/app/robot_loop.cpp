@@ -612,10 +612,6 @@ LoopResult RobotLoop::run() {
     ImageU8 gl, gr;
     cv::Mat left_bgr;
     sim::RenderResult rr;
-    // The simulated robot's pose when this frame is taken (the record's true_pose; true_pose itself
-    // moves on through the actuation below, and logging it there put it one control period after the
-    // frame's odometry pose and detections).
-    Pose2D true_at_capture = true_pose;
     {
       const auto s0 = std::chrono::steady_clock::now();
       if (I.world) {
@@ -623,7 +619,6 @@ LoopResult RobotLoop::run() {
           I.sim_motors->advance_to(clock.now_ns() - t0);
           true_pose = I.sim_motors->pose();
         }
-        true_at_capture = true_pose;
         rr = I.world->render(sim::Pose2{true_pose.x, true_pose.y, true_pose.yaw}, t_s, I.cfg.matcher.runtime.threads);
         gl = rgb_to_gray(rr.left);
         gr = rgb_to_gray(rr.right);
@@ -682,9 +677,12 @@ LoopResult RobotLoop::run() {
       if (!sim_clock && I.sim_motors && !I.world) {  // replay with simulated motors on the wall clock
         I.sim_motors->advance_to(capture_ns - t0);
         true_pose = I.sim_motors->pose();
-        true_at_capture = true_pose;
       }
     }
+    // The simulated robot's pose when this frame was taken (the record's true_pose; true_pose itself
+    // moves on through the actuation below, and logging it there put it one control period after the
+    // frame's odometry pose and detections).
+    const Pose2D true_at_capture = true_pose;
 
     // ---- match + refine ----
     auto s1 = std::chrono::steady_clock::now();
