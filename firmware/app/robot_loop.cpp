@@ -1055,7 +1055,7 @@ LoopResult RobotLoop::run() {
               if (d >= best) continue;
               best = d;
               const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& o) { return o.id == f.id; });
-              const bool moving = it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
+              const bool moving = it != spec.end() && (it->velocity_at(ts)[0] != 0.0 || it->velocity_at(ts)[1] != 0.0);
               const double bearing = robot::wrap_angle(std::atan2(f.y_m - true_pose.y, f.x_m - true_pose.x) - true_pose.yaw);
               struck = moving && std::fabs(bearing) > std::atan2(0.5 * gl.width, I.calib.focal_px);
             }
@@ -1232,6 +1232,7 @@ LoopResult RobotLoop::run() {
       json obs = json::array();
       for (const auto& s : I.world->scene().obstacles) {
         json o{{"id", s.id}, {"x", s.x_m}, {"y", s.y_m}, {"yaw", s.yaw_deg * M_PI / 180.0}, {"vx", s.vx_mps}, {"vy", s.vy_mps}};
+        if (!s.turns.empty()) o["turns"] = s.turns;  // a solid mover's changes of velocity: [t, vx, vy]
         if (s.shape == sim::Shape::Box) {
           o["shape"] = "box";
           o["length"] = s.length_m;
@@ -1259,7 +1260,10 @@ LoopResult RobotLoop::run() {
 sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const Config& cfg, std::string* features) {
   const robot::RobotParams rp = robot::robot_params_from(cfg.values);
   const std::uint64_t s = seed * 1000003ull + static_cast<std::uint64_t>(index);
-  const robot::NavScenario nav = robot::make_nav_scenario(s, blocked, rp);
+  // [loop] suite_movers: how movers meet obstacles (session 27; "pass" = through them).
+  const std::string mm = cfg.values.str("loop.suite_movers");
+  const robot::NavScenario nav = robot::make_nav_scenario(
+      s, blocked, rp, mm == "slide" ? robot::MoverModel::kSlide : mm == "stop" ? robot::MoverModel::kStop : robot::MoverModel::kPass);
   if (features) *features = nav.features;
   std::mt19937_64 rng(s ^ 0x5DEECE66Dull);
   auto uni = [&](double a, double b) { return a + (b - a) * static_cast<double>(rng() >> 11) * 0x1.0p-53; };
@@ -1298,7 +1302,8 @@ sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const C
   sc.ground.texture = static_cast<sim::GroundTexture>(pick(4));
   sc.render.supersample = 2;
   int id = 0;
-  for (const auto& o : nav.obstacles) {
+  for (std::size_t i = 0; i < nav.obstacles.size(); ++i) {
+    const robot::CircleObstacle& o = nav.obstacles[i];
     sim::ObstacleSpec ob;
     ob.id = id++;
     ob.shape = sim::Shape::Cylinder;
@@ -1310,6 +1315,8 @@ sim::Scene make_suite_scene(std::uint64_t seed, int index, bool blocked, const C
     ob.color = {static_cast<int>(uni(60, 230)), static_cast<int>(uni(60, 230)), static_cast<int>(uni(60, 230))};
     ob.vx_mps = o.vel.x;
     ob.vy_mps = o.vel.y;
+    if (i < nav.turns.size())
+      for (const auto& [t, v] : nav.turns[i]) ob.turns.push_back({t, v.x, v.y});
     sc.obstacles.push_back(ob);
   }
   sc.radiometric.left.noise_sigma = 1.0;

@@ -73,3 +73,14 @@ def test_a_record_without_truth_is_named(tmp_path: Path) -> None:
     (d / "frames.jsonl").write_text("")
     with pytest.raises(FatalError, match="world.obstacles"):
         track_errors([d])
+
+
+def test_solid_mover_follows_its_turns():
+    from fuzzyctl.simworld import obstacle_state
+
+    o = {"x": 1.0, "y": 2.0, "vx": 0.5, "vy": 0.0, "turns": [[2.0, 0.0, 0.5], [4.0, 0.0, 0.0]]}
+    assert obstacle_state(o, 1.0) == (1.5, 2.0, 0.5, 0.0)
+    assert obstacle_state(o, 3.0) == (2.0, 2.5, 0.0, 0.5)
+    assert obstacle_state(o, 10.0) == (2.0, 3.0, 0.0, 0.0)
+    walker = {k: v for k, v in o.items() if k != "turns"}  # pass-through mover: walks on
+    assert obstacle_state(walker, 10.0) == (6.0, 2.0, 0.5, 0.0)

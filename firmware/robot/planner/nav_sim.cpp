@@ -41,7 +41,110 @@ void add_ring(std::vector<CircleObstacle>& obs, Vec2 c, double ring_r, double rp
 
 }  // namespace
 
-NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParams& rp) {
+Vec2 NavScenario::at(std::size_t i, double t) const {
+  const CircleObstacle& o = obstacles[i];
+  if (i >= turns.size() || turns[i].empty()) return o.at(t);
+  Vec2 p = o.c, v = o.vel;
+  double t0 = 0.0;
+  for (const auto& [tk, vk] : turns[i]) {
+    if (tk > t) break;
+    p = p + (tk - t0) * v;
+    t0 = tk;
+    v = vk;
+  }
+  return p + (t - t0) * v;
+}
+
+Vec2 NavScenario::vel_at(std::size_t i, double t) const {
+  Vec2 v = obstacles[i].vel;
+  if (i < turns.size())
+    for (const auto& [tk, vk] : turns[i]) {
+      if (tk > t) break;
+      v = vk;
+    }
+  return v;
+}
+
+void walk_movers(NavScenario& sc, MoverModel model, const std::vector<CircleObstacle>& avoid, double horizon_s,
+                 double dt) {
+  auto& obs = sc.obstacles;
+  sc.turns.assign(obs.size(), {});
+  if (model == MoverModel::kPass) return;
+  const auto moving = [&](std::size_t i) { return obs[i].vel.x != 0.0 || obs[i].vel.y != 0.0; };
+  // A mover whose line starts inside a static obstacle or another mover starts where it comes out
+  // (moved forward along its line, at most 30 s of its walk); one that never does is left out.
+  const auto inside = [&](std::size_t i) {
+    for (std::size_t k = 0; k < obs.size(); ++k)
+      if (k != i && norm(obs[i].c - obs[k].c) < obs[i].r + obs[k].r) return true;
+    return false;
+  };
+  for (std::size_t i = 0; i < obs.size();) {
+    bool out = true;
+    if (moving(i) && inside(i)) {
+      out = false;
+      for (int k = 0; k < static_cast<int>(30.0 / dt) && !out; ++k) {
+        obs[i].c = obs[i].c + dt * obs[i].vel;
+        out = !inside(i);
+      }
+    }
+    if (out) ++i;
+    else obs.erase(obs.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+  sc.turns.assign(obs.size(), {});
+  std::vector<Vec2> pos(obs.size()), vel(obs.size());
+  for (std::size_t i = 0; i < obs.size(); ++i) pos[i] = obs[i].c, vel[i] = obs[i].vel;
+  // The first thing (index into obs, or obs.size() + k for avoid[k]) a disc of radius r at p overlaps.
+  const auto blocker = [&](std::size_t i, Vec2 p) -> std::ptrdiff_t {
+    for (std::size_t j = 0; j < obs.size(); ++j)
+      if (j != i && norm(p - pos[j]) < obs[i].r + obs[j].r) return static_cast<std::ptrdiff_t>(j);
+    if (model == MoverModel::kSlide)
+      for (std::size_t k = 0; k < avoid.size(); ++k)
+        if (norm(p - avoid[k].c) < obs[i].r + avoid[k].r) return static_cast<std::ptrdiff_t>(obs.size() + k);
+    return -1;
+  };
+  std::vector<std::size_t> walking;
+  for (std::size_t i = 0; i < obs.size(); ++i)
+    if (moving(i)) walking.push_back(i);
+  const int steps = static_cast<int>(std::ceil(horizon_s / dt));
+  for (int k = 0; k < steps && !walking.empty(); ++k) {
+    const double t = k * dt;  // every walker moves from its position at t to t + dt
+    for (std::size_t w = 0; w < walking.size();) {
+      const std::size_t i = walking[w];
+      std::ptrdiff_t j = blocker(i, pos[i] + dt * vel[i]);
+      if (j >= 0 && model == MoverModel::kSlide) {
+        // Deflect: the tangent of the blocker's disc at the walker, on the side of its velocity.
+        const Vec2 c = static_cast<std::size_t>(j) < obs.size() ? pos[static_cast<std::size_t>(j)]
+                                                                 : avoid[static_cast<std::size_t>(j) - obs.size()].c;
+        const Vec2 nrm = pos[i] - c;
+        const double nn = norm(nrm), speed = norm(vel[i]);
+        bool turned = false;
+        if (nn > 1e-9) {
+          Vec2 tan{-nrm.y / nn, nrm.x / nn};
+          if (tan.x * vel[i].x + tan.y * vel[i].y < 0) tan = -1.0 * tan;
+          for (int side = 0; side < 2 && !turned; ++side, tan = -1.0 * tan) {
+            const Vec2 v = speed * tan;
+            if (blocker(i, pos[i] + dt * v) < 0) {
+              vel[i] = v;
+              sc.turns[i].push_back({t, v});
+              turned = true;
+            }
+          }
+        }
+        if (turned) j = -1;
+      }
+      if (j >= 0) {  // stands from t on at its last position clear of everything
+        vel[i] = {};
+        sc.turns[i].push_back({t, Vec2{}});
+        walking.erase(walking.begin() + static_cast<std::ptrdiff_t>(w));
+        continue;
+      }
+      pos[i] = pos[i] + dt * vel[i];
+      ++w;
+    }
+  }
+}
+
+NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParams& rp, MoverModel movers) {
   Rng rng(seed * 0x9E3779B97F4A7C15ull + (blocked ? 7 : 1));
   for (int attempt = 0;; ++attempt) {
     NavScenario sc;
@@ -102,10 +205,16 @@ NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParam
       if (sc.features.find("moving") == std::string::npos) sc.features += "moving ";
     }
     if (!clear_of(obs, s, rp.radius_m + 0.1) || !clear_of(obs, sc.goal, rp.radius_m + 0.1)) continue;
+    // kSlide movers keep out of the start and goal areas (the lines of all movers already do).
+    walk_movers(sc, movers, {{s, rp.radius_m + 0.8, {}}, {sc.goal, rp.radius_m + 0.8, {}}});
     if (!blocked) {
+      // Solvable: a path among the static obstacles and the movers that end up standing (solid
+      // movers), where they stand.
       std::vector<CircleObstacle> st;
-      for (const auto& o : obs)
-        if (norm(o.vel) == 0) st.push_back(o);
+      for (std::size_t i = 0; i < obs.size(); ++i)
+        if (norm(obs[i].vel) == 0) st.push_back(obs[i]);
+        else if (i < sc.turns.size() && !sc.turns[i].empty() && norm(sc.turns[i].back().second) == 0)
+          st.push_back({sc.at(i, sc.turns[i].back().first), obs[i].r, {}});
       if (!std::isfinite(shortest_path_length(st, s, sc.goal, rp.radius_m + 0.03, 0.1))) continue;
     }
     (void)attempt;
@@ -137,7 +246,7 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
     const double t = ns_to_s(clock.now_ns());
     const Pose2D pose = motors.pose();
     std::vector<CircleObstacle> now;
-    for (const auto& o : sc.obstacles) now.push_back({o.at(t), o.r, o.vel});
+    for (std::size_t i = 0; i < sc.obstacles.size(); ++i) now.push_back({sc.at(i, t), sc.obstacles[i].r, sc.vel_at(i, t)});
     const BodyTwist cur = twist_from_wheels(motors.wheel_left_mps(), motors.wheel_right_mps(), rp.wheel_base_m);
     const PlanOutput plan = planner.plan(pose, cur, sc.goal, now, {&last_route, {}});
     if (pp.route_keep_ratio > 0) last_route = plan.path;
@@ -157,8 +266,8 @@ NavResult run_nav_scenario(const NavScenario& sc, const RobotParams& rp, const P
       const double ts = ns_to_s(clock.now_ns());
       res.path_m += norm(p.pos() - prev.pos());
       prev = p;
-      for (const auto& o : sc.obstacles) {
-        const double gap = norm(p.pos() - o.at(ts)) - o.r - rp.radius_m;
+      for (std::size_t i = 0; i < sc.obstacles.size(); ++i) {
+        const double gap = norm(p.pos() - sc.at(i, ts)) - sc.obstacles[i].r - rp.radius_m;
         res.min_gap_m = std::min(res.min_gap_m, gap);
         if (gap < 0) res.collided = true;
       }

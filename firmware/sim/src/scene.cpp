@@ -211,6 +211,29 @@ ObstacleSpec read_obstacle(const toml::table* t, int index, const std::string& s
   }
   o.vx_mps = r.num("vx_mps", 0.0, {-20.0, 20.0, false, false, "m/s"});
   o.vy_mps = r.num("vy_mps", 0.0, {-20.0, 20.0, false, false, "m/s"});
+  if (const toml::node* tn = r.get("turns")) {  // [[t_s, vx_mps, vy_mps], ...], t non-decreasing, >= 0
+    const std::string what = prefix + "turns";
+    const toml::array* a = tn->as_array();
+    if (!a) r.fail(what + " = " + node_text(*tn) + " is not valid: expected [[t_s, vx_mps, vy_mps], ...]");
+    double last = 0.0;
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::array* e = a->get(i)->as_array();
+      const std::string at = what + "[" + std::to_string(i) + "]";
+      if (!e || e->size() != 3) r.fail(at + " is not valid: expected [t_s, vx_mps, vy_mps]");
+      std::array<double, 3> k{};
+      for (std::size_t c = 0; c < 3; ++c) {
+        const toml::node& x = *e->get(c);
+        if (!x.is_number()) r.fail(at + " = " + node_text(*e->get(c)) + " is not a number");
+        k[c] = x.is_integer() ? static_cast<double>(x.as_integer()->get()) : x.as_floating_point()->get();
+      }
+      if (!std::isfinite(k[0]) || k[0] < last || k[0] > 1e6)
+        r.fail(at + " time " + num_text(k[0]) + " is out of range: float in [" + num_text(last) + ", 1e6] s (non-decreasing)");
+      if (!std::isfinite(k[1]) || !std::isfinite(k[2]) || std::fabs(k[1]) > 20.0 || std::fabs(k[2]) > 20.0)
+        r.fail(at + " velocity is out of range: floats in [-20, 20] m/s");
+      last = k[0];
+      o.turns.push_back(k);
+    }
+  }
   r.finish();
   return o;
 }
@@ -375,6 +398,12 @@ std::string scene_to_toml(const Scene& s) {
     o << "height_m = " << n(b.height_m) << "\ntexture = \"" << to_string(b.texture) << "\"\ncolor = [" << b.color[0]
       << ", " << b.color[1] << ", " << b.color[2] << "]\nvx_mps = " << n(b.vx_mps) << "\nvy_mps = " << n(b.vy_mps)
       << "\n";
+    if (!b.turns.empty()) {
+      o << "turns = [";
+      for (std::size_t i = 0; i < b.turns.size(); ++i)
+        o << (i ? ", " : "") << "[" << n(b.turns[i][0]) << ", " << n(b.turns[i][1]) << ", " << n(b.turns[i][2]) << "]";
+      o << "]\n";
+    }
   }
   return o.str();
 }

@@ -585,8 +585,9 @@ std::vector<Footprint> World::obstacles_at(double t) const {
     Footprint f;
     f.id = o.id;
     f.circle = o.shape != Shape::Box;
-    f.x_m = o.x_m + o.vx_mps * t;
-    f.y_m = o.y_m + o.vy_mps * t;
+    const auto at = o.position_at(t);
+    f.x_m = at[0];
+    f.y_m = at[1];
     f.yaw_rad = o.yaw_deg * kDeg;
     f.half_length_m = o.length_m * 0.5;
     f.half_width_m = o.width_m * 0.5;
@@ -613,13 +614,14 @@ struct FrameSetup {
   std::vector<Placed> placed;
   Vec3 sun;
   Color sun_c, amb_c, horizon;
+  double time_s = 0.0;  // scene time of the frame
 };
 
 // `clip`: replace the whole-image bounds of an obstacle straddling a camera plane by
 // clipped_bounds() (fast path only; the reference keeps the whole image).
 FrameSetup setup_frame(const Scene& sc, const Pose2& pose, double time_s, bool clip) {
   const CameraSpec& cam = sc.camera;
-  FrameSetup f{{camera_frame(cam, pose, 0), camera_frame(cam, pose, 1)}, {}, {}, {}, {}, {}};
+  FrameSetup f{{camera_frame(cam, pose, 0), camera_frame(cam, pose, 1)}, {}, {}, {}, {}, {}, time_s};
   const CameraFrame* frames = f.frames;
   std::vector<Placed>& placed = f.placed;
 
@@ -630,7 +632,8 @@ FrameSetup setup_frame(const Scene& sc, const Pose2& pose, double time_s, bool c
     Placed p;
     p.index = static_cast<int>(i);
     p.spec = &o;
-    p.base = {o.x_m + o.vx_mps * time_s, o.y_m + o.vy_mps * time_s, o.z_m};
+    const auto at = o.position_at(time_s);
+    p.base = {at[0], at[1], o.z_m};
     p.c = std::cos(o.yaw_deg * kDeg);
     p.s = std::sin(o.yaw_deg * kDeg);
     p.cyl = o.shape != Shape::Box;
@@ -749,8 +752,9 @@ struct Canvas {
       t.cam[0] = detail::dot(rel, f.frames[0].xc);
       t.cam[1] = detail::dot(rel, f.frames[0].yc);
       t.cam[2] = detail::dot(rel, f.frames[0].zc);
-      t.velocity[0] = p.spec->vx_mps;
-      t.velocity[1] = p.spec->vy_mps;
+      const auto v = p.spec->velocity_at(f.time_s);
+      t.velocity[0] = v[0];
+      t.velocity[1] = v[1];
       res.obstacles.push_back(t);
     }
     for (int y = 0; y < H; ++y)

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import FatalError
+from .simworld import obstacle_state
 
 
 def load_run(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -68,8 +69,7 @@ def _file_png(path: Path) -> str:
 def _obstacle_patch(o: dict[str, Any], t: float, **style):
     from matplotlib.patches import Circle, Polygon
 
-    x = o.get("x", 0.0) + o.get("vx", 0.0) * t
-    y = o.get("y", 0.0) + o.get("vy", 0.0) * t
+    x, y, _, _ = obstacle_state(o, t)
     if o.get("shape") == "box":
         L, W = o.get("length", 0.5), o.get("width", 0.5)
         c, s = math.cos(o.get("yaw", 0.0)), math.sin(o.get("yaw", 0.0))
@@ -91,7 +91,11 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
         if moving:
             ax.add_patch(_obstacle_patch(o, 0.0, facecolor="none", edgecolor="0.5", linestyle="--"))
             ax.add_patch(_obstacle_patch(o, t_end, facecolor="0.6", edgecolor="k", alpha=0.8))
-            ax.annotate("", xy=(o["x"] + o["vx"] * t_end, o["y"] + o["vy"] * t_end), xytext=(o["x"], o["y"]),
+            # its walk (straight, or with the turns of a solid mover), the arrow at the end
+            ts = [t_end * k / 50 for k in range(51)]
+            walk = [obstacle_state(o, t)[:2] for t in ts]
+            ax.plot([p[0] for p in walk], [p[1] for p in walk], color="0.4", linewidth=0.8)
+            ax.annotate("", xy=walk[-1], xytext=walk[-2] if walk[-2] != walk[-1] else (o["x"], o["y"]),
                         arrowprops=dict(arrowstyle="->", color="0.4"))
         else:
             ax.add_patch(_obstacle_patch(o, 0.0, facecolor="0.35", edgecolor="k"))

@@ -26,6 +26,7 @@ from typing import Any
 
 from .errors import FatalError
 from .runreport import load_run
+from .simworld import obstacle_state
 
 #: Bands of |bearing| [deg] of the measurement-error table.
 BEARING_BANDS = ((0, 10), (10, 20), (20, 30), (30, 40), (40, 90))
@@ -43,7 +44,7 @@ def _nearest(circles: list[dict[str, Any]], t: float, x: float, y: float
     """(distance, obstacle, its x, its y) of the circle nearest (x, y) at time t, or None."""
     best = None
     for o in circles:
-        ox, oy = o["x"] + o.get("vx", 0.0) * t, o["y"] + o.get("vy", 0.0) * t
+        ox, oy, _, _ = obstacle_state(o, t)
         d = math.hypot(ox - x, oy - y)
         if best is None or d < best[0]:
             best = (d, o, ox, oy)
@@ -93,7 +94,7 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
                 if hit is None or hit[0] > velocity_match_m:
                     continue
                 o = hit[1]
-                vx, vy = o.get("vx", 0.0), o.get("vy", 0.0)
+                _, _, vx, vy = obstacle_state(o, t)
                 kind = "moving" if math.hypot(vx, vy) > 0.01 else "static"
                 vel[kind].append(math.hypot(tr["v"][0] - vx, tr["v"][1] - vy))
     out: dict[str, Any] = {"records": len(run_dirs), "measurement": [], "velocity": {}}

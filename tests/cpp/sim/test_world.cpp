@@ -236,6 +236,34 @@ TEST(SimWorld, FootprintsClearanceAndCollisions) {
   EXPECT_NEAR(w.clearance(Pose2{2.0, 2.3, 0.0}, 2.0), 0.2, 1e-12);
 }
 
+TEST(SimWorld, AMoverTurnsAndStopsAtItsTurnTimes) {
+  // Walks +x at 1 m/s, turns to +y at 1.5 s, stands from 2.5 s on.
+  Scene s = parse_scene("[[obstacles]]\nshape = \"cylinder\"\nx_m = 0\ny_m = 3\nradius_m = 0.5\nvx_mps = 1\n"
+                        "turns = [[1.5, 0, 1], [2.5, 0, 0]]\n",
+                        "turns.toml");
+  ASSERT_EQ(s.obstacles.size(), 1u);
+  ASSERT_EQ(s.obstacles[0].turns.size(), 2u);
+  const World w(s);
+  EXPECT_DOUBLE_EQ(w.obstacles_at(1.0)[0].x_m, 1.0);
+  EXPECT_DOUBLE_EQ(w.obstacles_at(2.0)[0].x_m, 1.5);
+  EXPECT_DOUBLE_EQ(w.obstacles_at(2.0)[0].y_m, 3.5);
+  EXPECT_DOUBLE_EQ(w.obstacles_at(9.0)[0].y_m, 4.0);
+  EXPECT_EQ(s.obstacles[0].velocity_at(9.0)[1], 0.0);
+  EXPECT_EQ(s.obstacles[0].velocity_at(2.0)[1], 1.0);
+  // written and read back (scene_to_toml); bad turns name the field
+  const Scene back = parse_scene(scene_to_toml(s), "back.toml");
+  EXPECT_EQ(back.obstacles[0].turns, s.obstacles[0].turns);
+  EXPECT_TRUE(parse_scene("[[obstacles]]\nx_m = 3\n", "n.toml").obstacles[0].turns.empty());
+  for (const char* bad : {"turns = [[2, 0, 1], [1, 0, 0]]", "turns = [[1, 0]]", "turns = [[-1, 0, 0]]", "turns = 3"}) {
+    try {
+      parse_scene(std::string("[[obstacles]]\nx_m = 3\nvx_mps = 1\n") + bad + "\n", "bad.toml");
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find("obstacles[0].turns"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(SimGenerator, TypesSpreadEvenlyObstaclesInViewAndApart) {
   GeneratorOptions opt;
   opt.width = 160;

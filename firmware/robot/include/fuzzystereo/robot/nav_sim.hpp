@@ -19,13 +19,37 @@ struct NavScenario {
   std::uint64_t seed = 0;
   Pose2D start;
   Vec2 goal;
-  std::vector<CircleObstacle> obstacles;  // at t = 0; position at t is c + t * vel
+  std::vector<CircleObstacle> obstacles;  // at t = 0; position at t is at(i, t)
+  // Per obstacle: its changes of velocity, (t [s], new velocity), in time order; empty = constant
+  // velocity (static obstacles, pass-through movers). A stop is a turn to velocity 0.
+  std::vector<std::vector<std::pair<double, Vec2>>> turns;
   bool solvable = true;                   // false: goal (or robot) enclosed, gaps narrower than the robot
   std::string features;                   // "gap", "utrap", "moving", "ring-goal", "ring-robot"
+
+  // Position and velocity of obstacle i at time t (c, vel, then each turn in order).
+  Vec2 at(std::size_t i, double t) const;
+  Vec2 vel_at(std::size_t i, double t) const;
 };
 
-// Deterministic in seed. blocked = true builds an unsolvable one.
-NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParams& rp);
+// How the movers of a generated scenario meet static obstacles and each other.
+enum class MoverModel {
+  kPass,   // straight lines through everything (the worlds of every suite file up to session 26)
+  kStop,   // walk until the next step would overlap something, then stand there
+  kSlide,  // (default) deflect along the obstacle (the tangent at the contact, keeping speed and the forward
+           // side); stand only when both tangents are blocked. The start and goal areas are
+           // obstacles to them too (the v1 lines never pass there either).
+};
+
+// Deterministic in seed. blocked = true builds an unsolvable one. Same seed, same static obstacles
+// and mover lines whatever the mover model; with kStop / kSlide a mover whose line starts inside an
+// obstacle starts where its line comes out of it.
+NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParams& rp, MoverModel movers = MoverModel::kSlide);
+
+// Solid movers (kStop, kSlide): fills sc.turns by stepping every mover in dt steps up to horizon_s
+// against the static obstacles, the other movers (at their positions then) and `avoid` (discs only
+// kSlide movers keep out of).
+void walk_movers(NavScenario& sc, MoverModel model, const std::vector<CircleObstacle>& avoid = {},
+                 double horizon_s = 120.0, double dt = 0.05);
 
 struct NavResult {
   bool reached = false;    // within goal tolerance

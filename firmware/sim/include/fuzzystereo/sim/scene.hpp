@@ -7,6 +7,7 @@
 // x forward (east), y left, z up, ground plane z = 0 (see docs/simulator.md, "Conventions").
 #pragma once
 #include <array>
+#include <limits>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -76,6 +77,31 @@ struct ObstacleSpec {
   Texture texture = Texture::Noise;
   std::array<int, 3> color{180, 180, 180};  // albedo tint, 0..255 per channel
   double vx_mps = 0.0, vy_mps = 0.0;        // constant world velocity [m/s]
+  // Changes of velocity (t [s], vx, vy [m/s]), in time order: the obstacle moves with (vx_mps,
+  // vy_mps) from t = 0, with the new velocity from each t on (a stop is a turn to 0, 0). The suite's
+  // solid movers (docs/robot.md); empty = constant velocity.
+  std::vector<std::array<double, 3>> turns;
+  // Position of the centre at time t [m] and velocity [m/s].
+  std::array<double, 2> position_at(double t) const {
+    double x = x_m, y = y_m, vx = vx_mps, vy = vy_mps, t0 = 0.0;
+    for (const auto& k : turns) {
+      if (k[0] > t) break;
+      x += (k[0] - t0) * vx;
+      y += (k[0] - t0) * vy;
+      t0 = k[0];
+      vx = k[1];
+      vy = k[2];
+    }
+    return {x + (t - t0) * vx, y + (t - t0) * vy};
+  }
+  std::array<double, 2> velocity_at(double t) const {
+    std::array<double, 2> v{vx_mps, vy_mps};
+    for (const auto& k : turns) {
+      if (k[0] > t) break;
+      v = {k[1], k[2]};
+    }
+    return v;
+  }
 };
 
 struct CameraRadiometry {
