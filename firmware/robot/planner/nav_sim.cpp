@@ -112,18 +112,25 @@ void walk_movers(NavScenario& sc, MoverModel model, const std::vector<CircleObst
       const std::size_t i = walking[w];
       std::ptrdiff_t j = blocker(i, pos[i] + dt * vel[i]);
       if (j >= 0 && model == MoverModel::kSlide) {
-        // Deflect: the tangent of the blocker's disc at the walker, on the side of its velocity.
-        const Vec2 c = static_cast<std::size_t>(j) < obs.size() ? pos[static_cast<std::size_t>(j)]
-                                                                 : avoid[static_cast<std::size_t>(j) - obs.size()].c;
-        const Vec2 nrm = pos[i] - c;
-        const double nn = norm(nrm), speed = norm(vel[i]);
+        // Deflect: off a start / goal area it bounces (mirrored about the area's tangent, so it
+        // walks away from it, as the straight lines keep away from them); along an obstacle it
+        // slides (the tangent of its disc at the walker, on the side of its velocity), or along the
+        // other tangent when that one is blocked.
+        const bool area = static_cast<std::size_t>(j) >= obs.size();
+        const Vec2 c = area ? avoid[static_cast<std::size_t>(j) - obs.size()].c : pos[static_cast<std::size_t>(j)];
+        const Vec2 d = pos[i] - c;
+        const double nn = norm(d), speed = norm(vel[i]);
         bool turned = false;
         if (nn > 1e-9) {
-          Vec2 tan{-nrm.y / nn, nrm.x / nn};
+          const Vec2 nrm = (1.0 / nn) * d;
+          Vec2 tan{-nrm.y, nrm.x};
           if (tan.x * vel[i].x + tan.y * vel[i].y < 0) tan = -1.0 * tan;
-          for (int side = 0; side < 2 && !turned; ++side, tan = -1.0 * tan) {
-            const Vec2 v = speed * tan;
-            if (blocker(i, pos[i] + dt * v) < 0) {
+          const double vn = nrm.x * vel[i].x + nrm.y * vel[i].y;
+          const Vec2 bounce = vel[i] - (2.0 * std::min(vn, 0.0)) * nrm;
+          const Vec2 tries[3] = {area ? bounce : speed * tan, area ? speed * tan : -speed * tan, -speed * tan};
+          for (int k2 = 0; k2 < 3 && !turned; ++k2) {
+            const Vec2 v = tries[k2];
+            if (norm(v) > 0 && blocker(i, pos[i] + dt * v) < 0) {
               vel[i] = v;
               sc.turns[i].push_back({t, v});
               turned = true;
@@ -205,7 +212,7 @@ NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParam
       if (sc.features.find("moving") == std::string::npos) sc.features += "moving ";
     }
     if (!clear_of(obs, s, rp.radius_m + 0.1) || !clear_of(obs, sc.goal, rp.radius_m + 0.1)) continue;
-    // kSlide movers keep out of the start and goal areas (the lines of all movers already do).
+    // kSlide movers bounce off the start and goal areas (which the lines of all movers keep out of).
     walk_movers(sc, movers, {{s, rp.radius_m + 0.8, {}}, {sc.goal, rp.radius_m + 0.8, {}}});
     if (!blocked) {
       // Solvable: a path among the static obstacles and the movers that end up standing (solid

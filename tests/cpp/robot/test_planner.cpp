@@ -525,6 +525,16 @@ TEST(NavSuite, SolidMoversStopOrSlideWhereTheyWouldTouchSomething) {
   EXPECT_NEAR(norm(slide.vel_at(1, 10.0)), 1.0, 1e-9);
   EXPECT_GT(slide.at(1, 10.0).x, 3.0);
   for (double t = 0.0; t <= 10.0; t += 0.01) EXPECT_GE(norm(slide.at(1, t) - Vec2{3.0, 0.0}), 0.5 - 1e-9) << t;
+  // A start / goal area: a mover walking at it obliquely bounces off (mirrored about the area's
+  // tangent) and never enters it.
+  NavScenario area;
+  area.obstacles.push_back({{0.0, 0.5}, 0.2, {1.0, 0.0}});
+  walk_movers(area, MoverModel::kSlide, {{{3.0, 0.0}, 1.0, {}}}, 20.0, 0.05);
+  ASSERT_EQ(area.turns[0].size(), 1u);
+  EXPECT_LT(area.vel_at(0, 10.0).x, 0.0);                    // walks back out ...
+  EXPECT_GT(area.vel_at(0, 10.0).y, 0.0);                    // ... on the far side of its line
+  EXPECT_NEAR(norm(area.vel_at(0, 10.0)), 1.0, 1e-9);
+  for (double t = 0.0; t <= 20.0; t += 0.01) EXPECT_GE(norm(area.at(0, t) - Vec2{3.0, 0.0}), 1.2 - 1e-9) << t;
   // Pass-through: no turns, straight through the post.
   EXPECT_TRUE(pass.turns[1].empty());
   EXPECT_NEAR(pass.at(1, 3.0).x, 3.0, 1e-9);

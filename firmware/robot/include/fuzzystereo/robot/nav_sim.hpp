@@ -36,8 +36,8 @@ enum class MoverModel {
   kPass,   // straight lines through everything (the worlds of every suite file up to session 26)
   kStop,   // walk until the next step would overlap something, then stand there
   kSlide,  // (default) deflect along the obstacle (the tangent at the contact, keeping speed and the forward
-           // side); stand only when both tangents are blocked. The start and goal areas are
-           // obstacles to them too (the v1 lines never pass there either).
+           // side); stand only when both tangents are blocked. Off the start and goal areas (which
+           // the straight lines never cross either) they bounce: mirrored about the area's tangent.
 };
 
 // Deterministic in seed. blocked = true builds an unsolvable one. Same seed, same static obstacles
