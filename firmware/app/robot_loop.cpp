@@ -92,7 +92,7 @@ StageStat stat_of(std::vector<double> v) {
 // of a wall into ghost tracks); tracks slower than 0.04 m/s are left to the map; a track's velocity
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
-  double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m,
+  double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
@@ -107,6 +107,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.map_range_m = v.num("loop.map_range_m");
   p.track_max_width_m = v.num("loop.track_max_width_m");
   p.moving_speed_mps = v.num("loop.moving_speed_mps");
+  p.moving_window_s = v.num("loop.moving_window_s");
   p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
@@ -832,6 +833,14 @@ LoopResult RobotLoop::run() {
           if (lp.moving_travel_sigmas > 0 &&
               dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
             return false;
+          // moving_window_s: the direction is checked against the travel over the last
+          // moving_window_s of measurements (when that is at least 0.1 m), so a mover that turned
+          // (or a track that took over a mover's measurements) is judged on where it goes now.
+          if (lp.moving_window_s > 0) {
+            const Vec2 recent = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
+            const double rd = robot::norm(recent);
+            if (rd >= 0.1) return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel);
+          }
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
         const bool is_mover = moving();

@@ -139,6 +139,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.confirmed = tr.confirmed || tr.hits >= p_.confirm_hits;
     tr.last_meas_ns = t_ns;
     tr.last_meas_p = m.p;
+    tr.remember_measurement(t_ns, m.p);
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
@@ -171,6 +172,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_p = m.p;
     tr.first_meas_ns = t_ns;
     tr.first_meas_p = m.p;
+    tr.remember_measurement(t_ns, m.p);
     tr.first_meas_var = sigma * sigma;
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;

@@ -341,6 +341,30 @@ TEST(Tracker, LostTracksRemembersADeletedConfirmedTrackUntilKeepS) {
   EXPECT_TRUE(lost.lost().empty());
 }
 
+TEST(Tracker, RecentMeasurementsGiveTheTravelOfTheLastSeconds) {
+  // A target walks +x for 2 s, then +y (a mover that turned along an obstacle): its whole-life travel
+  // points between the two legs, the last 1.5 s of measurements along +y ([loop] moving_window_s).
+  TrackerParams tp;
+  MultiTracker mt(tp);
+  const auto all = [](Vec2) { return true; };
+  Vec2 p{2.0, 0.0};
+  for (int f = 0; f <= 40; ++f) {
+    mt.step(s_to_ns(0.1 * f), {{p, 0.2, 0, 0}}, all);
+    p = f < 20 ? p + Vec2{0.03, 0.0} : p + Vec2{0.0, 0.03};
+  }
+  ASSERT_EQ(mt.tracks().size(), 1u);
+  const Track& tr = mt.tracks()[0];
+  EXPECT_EQ(tr.recent_meas.size(), Track::kRecentMeas);  // the oldest were dropped
+  EXPECT_EQ(tr.recent_meas.back().first, s_to_ns(4.0));
+  const Vec2 recent = tr.last_meas_p - tr.meas_since(s_to_ns(1.5));
+  EXPECT_NEAR(recent.x, 0.0, 1e-9);
+  EXPECT_NEAR(recent.y, 0.45, 1e-9);
+  const Vec2 life = tr.last_meas_p - tr.first_meas_p;
+  EXPECT_NEAR(life.x, 0.6, 1e-9);
+  EXPECT_NEAR(life.y, 0.6, 1e-9);
+  EXPECT_EQ(tr.meas_since(0).x, tr.last_meas_p.x);  // a zero window: the last measurement itself
+}
+
 TEST(Tracker, TwoTargetsKeepTheirIdentities) {
   TrackerParams tp;
   tp.confirm_hits = 2;

@@ -3,6 +3,7 @@
 // the predicted position is inside the sensor's view (so obstacles that left the camera view coast
 // and stay available to the planner). See docs/robot.md "Tracking".
 #pragma once
+#include <utility>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -63,6 +64,21 @@ struct Track {
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
   bool updated_this_frame = false;
   bool mover = false;           // the loop's moving test passed at its last planning step (mark_movers)
+  // The last kRecentMeas measured positions with their times, oldest first (the loop's moving test
+  // over a recent window, [loop] moving_window_s).
+  static constexpr std::size_t kRecentMeas = 32;
+  std::vector<std::pair<std::int64_t, Vec2>> recent_meas;
+  // The oldest recent measurement at most window_ns before the last one (the last one itself when
+  // none is older).
+  Vec2 meas_since(std::int64_t window_ns) const {
+    for (const auto& [t, p] : recent_meas)
+      if (t >= last_meas_ns - window_ns) return p;
+    return last_meas_p;
+  }
+  void remember_measurement(std::int64_t t_ns, Vec2 p) {
+    if (recent_meas.size() >= kRecentMeas) recent_meas.erase(recent_meas.begin());
+    recent_meas.emplace_back(t_ns, p);
+  }
 
   Vec2 pos() const { return {kf.px(), kf.py()}; }
   Vec2 vel() const { return {kf.vx(), kf.vy()}; }
