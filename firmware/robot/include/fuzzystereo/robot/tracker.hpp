@@ -3,9 +3,9 @@
 // the predicted position is inside the sensor's view (so obstacles that left the camera view coast
 // and stay available to the planner). See docs/robot.md "Tracking".
 #pragma once
-#include <utility>
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "fuzzystereo/robot/clock.hpp"

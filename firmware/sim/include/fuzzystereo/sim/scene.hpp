@@ -7,7 +7,6 @@
 // x forward (east), y left, z up, ground plane z = 0 (see docs/simulator.md, "Conventions").
 #pragma once
 #include <array>
-#include <limits>
 #include <cstdint>
 #include <optional>
 #include <string>
