@@ -3,6 +3,7 @@
 #include "run_recorder.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -1064,7 +1065,8 @@ LoopResult RobotLoop::run() {
               if (d >= best) continue;
               best = d;
               const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& o) { return o.id == f.id; });
-              const bool moving = it != spec.end() && (it->velocity_at(ts)[0] != 0.0 || it->velocity_at(ts)[1] != 0.0);
+              const auto v = it != spec.end() ? it->velocity_at(ts) : std::array<double, 2>{0.0, 0.0};
+              const bool moving = v[0] != 0.0 || v[1] != 0.0;
               const double bearing = robot::wrap_angle(std::atan2(f.y_m - true_pose.y, f.x_m - true_pose.x) - true_pose.yaw);
               struck = moving && std::fabs(bearing) > std::atan2(0.5 * gl.width, I.calib.focal_px);
             }

@@ -127,8 +127,9 @@ void walk_movers(NavScenario& sc, MoverModel model, const std::vector<CircleObst
           if (tan.x * vel[i].x + tan.y * vel[i].y < 0) tan = -1.0 * tan;
           const double vn = nrm.x * vel[i].x + nrm.y * vel[i].y;
           const Vec2 bounce = vel[i] - (2.0 * std::min(vn, 0.0)) * nrm;
-          const Vec2 tries[3] = {area ? bounce : speed * tan, area ? speed * tan : -speed * tan, -speed * tan};
-          for (int k2 = 0; k2 < 3 && !turned; ++k2) {
+          // An area: the bounce, then either tangent; an obstacle: its forward tangent, then the other.
+          const Vec2 tries[3] = {bounce, speed * tan, -speed * tan};
+          for (int k2 = area ? 0 : 1; k2 < 3 && !turned; ++k2) {
             const Vec2 v = tries[k2];
             if (norm(v) > 0 && blocker(i, pos[i] + dt * v) < 0) {
               vel[i] = v;
