@@ -93,15 +93,16 @@ StageStat stat_of(std::vector<double> v) {
 // of a wall into ghost tracks); tracks slower than 0.04 m/s are left to the map; a track's velocity
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
 struct LoopParams {
-  double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s,
+  double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s, moving_window_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
-      meas_sigma_floor_m, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
+      meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
       stuck_exit_m, blocked_confirm_range_m;
   bool stuck_keep_unseen;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres, ray_centres;
+  int near_track_moving;  // 0 = static circle, 1 = moving circle, 2 = both, 3 = fan, 4 = grow ([loop] near_track_moving)
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -109,6 +110,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.track_max_width_m = v.num("loop.track_max_width_m");
   p.moving_speed_mps = v.num("loop.moving_speed_mps");
   p.moving_window_s = v.num("loop.moving_window_s");
+  p.moving_window_travel_m = v.num("loop.moving_window_travel_m");
   p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
@@ -117,6 +119,8 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.near_track_m = v.num("loop.near_track_m");
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
+  const std::string ntm = v.str("loop.near_track_moving");
+  p.near_track_moving = ntm == "moving" ? 1 : ntm == "both" ? 2 : ntm == "fan" ? 3 : ntm == "grow" ? 4 : 0;
   p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
@@ -132,6 +136,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.look_live_tracks = v.flag("loop.look_live_tracks");
   p.look_min_hits = static_cast<int>(v.integer("loop.look_min_hits"));
   p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
+  p.edge_meas_sigma_scale = v.num("loop.edge_meas_sigma_scale");
   p.silhouette_centres = v.flag("loop.silhouette_centres");
   p.ray_centres = v.flag("loop.ray_centres");
   p.seen_max_age_s = v.num("loop.seen_max_age_s");
@@ -230,6 +235,12 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
     robot::ObstacleMeasurement m;
     m.distance_class = static_cast<int>(o.cls);
     m.sigma_m = std::max(lp.meas_sigma_floor_m, depth_sigma(calib, g.depth));
+    // edge_meas_sigma_scale (session 28): a detection cut by the image's right border, or on the
+    // left by the band where the right image holds no partner (x < its disparity), shows only part
+    // of the obstacle: its width, and so the centre behind the front, shrink as it leaves the view
+    // and the track reads a velocity the obstacle does not have. Such a measurement is trusted less.
+    if (lp.edge_meas_sigma_scale > 1.0 && (o.x1 >= w - 2 || o.x0 <= static_cast<int>(std::ceil(d_px)) + 2))
+      m.sigma_m *= lp.edge_meas_sigma_scale;
     if (lp.silhouette_centres) {
       // The silhouette rays through the box's outer pixel edges, the front at the box centre
       // (robot::circle_from_silhouette; the camera is at the robot's centre).
@@ -835,12 +846,13 @@ LoopResult RobotLoop::run() {
               dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
             return false;
           // moving_window_s: the direction is checked against the travel over the last
-          // moving_window_s of measurements (when that is at least 0.1 m), so a mover that turned
-          // (or a track that took over a mover's measurements) is judged on where it goes now.
+          // moving_window_s of measurements (when that is at least moving_window_travel_m), so a
+          // mover that turned (or a track that took over a mover's measurements) is judged on where
+          // it goes now.
           if (lp.moving_window_s > 0) {
             const Vec2 recent = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
             const double rd = robot::norm(recent);
-            if (rd >= 0.1) return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel);
+            if (rd >= lp.moving_window_travel_m) return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel);
           }
           return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
         };
@@ -862,8 +874,35 @@ LoopResult RobotLoop::run() {
           const double dist = robot::norm(tr.pos() - pose.pos());
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
               dist > tr.radius_m + I.rp.radius_m) {
-            obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
-            kinds.push_back('n');
+            // near_track_moving (session 28): a track without static support may also (or instead)
+            // carry its filtered velocity, so the planner keeps out of where it goes next, not only
+            // of where it is (the tracks that follow a turned mover but fail the direction test).
+            if (lp.near_track_moving != 1 || supported) {
+              obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
+              // "grow": the circle grows at the track's speed over the planner's horizon (at most
+              // near_track_reach_cap_m): where it can be whatever its heading.
+              if (lp.near_track_moving == 4 && !supported) {
+                obstacles.back().grow = robot::norm(o.vel);
+                obstacles.back().grow_max = lp.near_track_reach_cap_m;
+              }
+              kinds.push_back('n');
+            }
+            if ((lp.near_track_moving == 1 || lp.near_track_moving == 2) && !supported) {
+              obstacles.push_back({tr.pos(), tr.radius_m, tr.vel(), true});
+              kinds.push_back('n');
+            } else if (lp.near_track_moving == 3 && !supported) {
+              // "fan": where it can be over the horizon at its speed in any direction (the velocity
+              // of a track that follows a turning mover is often 60-140 deg off): copies of the
+              // circle leaving at its filtered speed in kFan directions, the first along its velocity.
+              constexpr int kFan = 6;
+              const Vec2 v = tr.vel();
+              const double sp = robot::norm(v), a0 = std::atan2(v.y, v.x);
+              for (int k = 0; k < kFan; ++k) {
+                const double a = a0 + 2.0 * M_PI * k / kFan;
+                obstacles.push_back({tr.pos(), tr.radius_m, {sp * std::cos(a), sp * std::sin(a)}, true});
+                kinds.push_back('n');
+              }
+            }
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
@@ -879,6 +918,11 @@ LoopResult RobotLoop::run() {
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;
+              // "grow": the set goes on growing at that speed over the horizon, up to the cap.
+              if (lp.near_track_moving == 4 && speed > 0.0) {
+                reach.grow = speed;
+                reach.grow_max = std::max(0.0, lp.near_track_reach_cap_m - (reach.r - tr.radius_m));
+              }
               obstacles.push_back(reach);
               kinds.push_back('r');
             }

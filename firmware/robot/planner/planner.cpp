@@ -193,7 +193,7 @@ std::vector<double> contact_d2(const Pose2D& p0, const std::vector<CircleObstacl
     const CircleObstacle& o = obs[i];
     const double hard = o.r + rp.radius_m + pp.collision_margin_m;
     const double dx = o.c.x - p0.x, dy = o.c.y - p0.y, now2 = dx * dx + dy * dy;
-    const bool is_static = o.vel.x == 0.0 && o.vel.y == 0.0;
+    const bool is_static = !o.moves();
     d2[i] = pp.escape_inside_margin && is_static ? std::min(hard * hard, now2) : hard * hard;
   }
   return d2;
@@ -252,10 +252,13 @@ ArcEval eval_arc(const Pose2D& p0, double v, double w, bool brake, const std::ve
       const CircleObstacle& o = obs[i];
       const double ox = o.c.x + t * o.vel.x - x, oy = o.c.y + t * o.vel.y - y;
       const double d2 = ox * ox + oy * oy;
-      if (d2 < hard2[i]) hit = true;
+      // A growing obstacle (grow > 0): its hard distance grows with it (hard2 holds it at t = 0).
+      const double g = o.grow > 0.0 ? o.r_at(t) - o.r : 0.0;
+      if (g > 0.0 ? std::sqrt(d2) < std::sqrt(hard2[i]) + g : d2 < hard2[i]) hit = true;
       // only gaps below the soft range (robot radius + safety margin) enter the clearance cost
-      const double soft = o.r + 2.0 * rp.radius_m + pp.safety_margin_m;
-      if (d2 < soft * soft) gap_min = std::min(gap_min, std::sqrt(d2) - o.r - rp.radius_m);
+      const double rt = o.r + g;
+      const double soft = rt + 2.0 * rp.radius_m + pp.safety_margin_m;
+      if (d2 < soft * soft) gap_min = std::min(gap_min, std::sqrt(d2) - rt - rp.radius_m);
     }
     if (hit) {
       e.t_collide = t;
@@ -280,8 +283,8 @@ double worst_gap(const Pose2D& pose, double v, double w, const std::vector<Circl
   for (double t = pp.control_period_s; t <= pp.horizon_s + 1e-9; t += pp.sim_step_s) {
     const Pose2D p = integrate_pose(pose, {v, w}, t);
     for (const CircleObstacle& o : obs) {
-      if (moving_only && o.vel.x == 0.0 && o.vel.y == 0.0) continue;
-      worst = std::min(worst, norm(o.c + t * o.vel - p.pos()) - o.r - rp.radius_m);
+      if (moving_only && !o.moves()) continue;
+      worst = std::min(worst, norm(o.c + t * o.vel - p.pos()) - o.r_at(t) - rp.radius_m);
     }
   }
   return worst;
@@ -294,7 +297,7 @@ std::vector<CircleObstacle> Planner::reachable_obstacles(const std::vector<Circl
   const double reach = rp_.max_speed_mps * pp_.horizon_s + rp_.radius_m + pp_.safety_margin_m;
   std::vector<CircleObstacle> near;
   for (const CircleObstacle& o : obstacles)
-    if (norm(o.c - pos) - o.r - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
+    if (norm(o.c - pos) - o.r_at(pp_.horizon_s) - norm(o.vel) * pp_.horizon_s <= reach) near.push_back(o);
   return near;
 }
 
@@ -326,7 +329,7 @@ bool Planner::evade_instead_of_standing(const Pose2D& pose, const std::vector<Ci
                                         double escape_gap) const {
   double now_moving = kInf;
   for (const CircleObstacle& o : near)
-    if (o.vel.x != 0.0 || o.vel.y != 0.0) now_moving = std::min(now_moving, norm(o.c - pose.pos()) - o.r - rp_.radius_m);
+    if (o.moves()) now_moving = std::min(now_moving, norm(o.c - pose.pos()) - o.r - rp_.radius_m);
   const double stand_moving = worst_gap(pose, 0.0, 0.0, near, pp_, rp_, true);
   const double stand_gap = worst_gap(pose, 0.0, 0.0, near, pp_, rp_);
   return stand_moving < pp_.collision_margin_m && stand_moving < now_moving - 0.02 && escape_gap > stand_gap + 0.03;
@@ -468,7 +471,14 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
 Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, double latency_s,
                                std::vector<CircleObstacle>& obstacles) {
   if (!(latency_s > 0.0)) return pose;
-  for (CircleObstacle& o : obstacles) o.c = o.c + latency_s * o.vel;
+  for (CircleObstacle& o : obstacles) {
+    o.c = o.c + latency_s * o.vel;
+    if (o.grow > 0.0) {  // grown by the latency; what is left of the cap stays
+      const double g = o.r_at(latency_s) - o.r;
+      o.r += g;
+      o.grow_max -= g;
+    }
+  }
   return integrate_pose(pose, current, latency_s);
 }
 

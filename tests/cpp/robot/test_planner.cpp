@@ -208,6 +208,44 @@ TEST(Planner, CrossingObstacleIsPredicted) {
   }
 }
 
+// A growing circle ([loop] near_track_moving = "grow": where a track of unknown heading can be):
+// its hard distance grows over the horizon, so the arc straight past it that a fixed circle
+// allows is not taken; the growth is capped; latency compensation grows it and keeps the rest of
+// the cap. A zero growth plans as before.
+TEST(Planner, GrowingCircleIsKeptClearOfAsItGrows) {
+  const RobotParams rp = robot();
+  const PlannerParams pp = planner();
+  const Planner p(pp, rp);
+  CircleObstacle c{{1.0, 0.45}, 0.2, {}};
+  EXPECT_DOUBLE_EQ(c.r_at(2.0), 0.2);
+  EXPECT_FALSE(c.moves());
+  const PlanOutput fixed = p.plan({0, 0, 0}, {0.3, 0}, {4, 0}, {c});
+  c.grow = 0.3;
+  c.grow_max = 0.5;
+  EXPECT_TRUE(c.moves());
+  EXPECT_DOUBLE_EQ(c.r_at(1.0), 0.5);
+  EXPECT_DOUBLE_EQ(c.r_at(5.0), 0.7);  // capped
+  const PlanOutput grown = p.plan({0, 0, 0}, {0.3, 0}, {4, 0}, {c});
+  // Every point of the chosen arc keeps the grown circle's hard distance (the fixed circle's arc
+  // passes 0.1 m from it: a 0.2 m circle at 0.45 m beside a straight line).
+  Pose2D q{0, 0, 0};
+  double worst_grown = 1e9, worst_fixed = 1e9;
+  Pose2D f{0, 0, 0};
+  for (double t = 0.1; t <= pp.horizon_s + 1e-9; t += 0.1) {
+    q = integrate_pose({0, 0, 0}, grown.cmd, t);
+    f = integrate_pose({0, 0, 0}, fixed.cmd, t);
+    worst_grown = std::min(worst_grown, norm(q.pos() - c.c) - c.r_at(t) - rp.radius_m);
+    worst_fixed = std::min(worst_fixed, norm(f.pos() - c.c) - c.r_at(t) - rp.radius_m);
+  }
+  EXPECT_LT(worst_fixed, 0.0);  // the fixed circle's arc would meet the grown circle
+  EXPECT_GT(worst_grown, worst_fixed + 0.05);
+  std::vector<CircleObstacle> obs = {c};
+  predict_to_command_time({0, 0, 0}, {0.3, 0}, 0.1, obs);
+  EXPECT_NEAR(obs[0].r, 0.23, 1e-12);
+  EXPECT_NEAR(obs[0].grow_max, 0.47, 1e-12);
+  EXPECT_NEAR(obs[0].r_at(10.0), 0.7, 1e-12);
+}
+
 TEST(Mixer, LimitsSpeedAccelerationAndKeepsCurvature) {
   RobotParams rp;
   DiffDriveMixer mx(rp);

@@ -1,6 +1,8 @@
 // Small 2-D ground-plane types shared by odometry, tracking and planning. World frame: x forward
 // (east), y left, z up; yaw counter-clockwise from +x [rad].
 #pragma once
+
+#include <algorithm>
 #include <cmath>
 
 namespace fs::robot {
@@ -42,7 +44,11 @@ struct CircleObstacle {
   bool unconfirmed = false;  // a map cell hit only from farther than the confirmation range (depth
                              // error grows with Z^2): left out of the global search where it covers
                              // the goal, so it never decides "blocked" there (planner.cpp)
+  double grow = 0;      // [m/s] radius growth: where a tracked obstacle of unknown heading can be
+  double grow_max = 0;  // [m] at most this much growth (r_at(t) = r + min(grow t, grow_max))
   Vec2 at(double t) const { return c + t * vel; }
+  double r_at(double t) const { return grow > 0.0 ? r + std::min(grow * t, grow_max) : r; }
+  bool moves() const { return vel.x != 0.0 || vel.y != 0.0 || grow > 0.0; }
 };
 
 // Oriented box: centre, half extents along its own axes, heading [rad].
