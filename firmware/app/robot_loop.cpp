@@ -895,13 +895,8 @@ LoopResult RobotLoop::run() {
               // of a track that follows a turning mover is often 60-140 deg off): copies of the
               // circle leaving at its filtered speed in kFan directions, the first along its velocity.
               constexpr int kFan = 6;
-              const Vec2 v = tr.vel();
-              const double sp = robot::norm(v), a0 = std::atan2(v.y, v.x);
-              for (int k = 0; k < kFan; ++k) {
-                const double a = a0 + 2.0 * M_PI * k / kFan;
-                obstacles.push_back({tr.pos(), tr.radius_m, {sp * std::cos(a), sp * std::sin(a)}, true});
-                kinds.push_back('n');
-              }
+              robot::fan_circles(tr.pos(), tr.radius_m, tr.vel(), kFan, obstacles);
+              kinds.resize(obstacles.size(), 'n');
             }
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
                    robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {

@@ -482,6 +482,14 @@ Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, dou
   return integrate_pose(pose, current, latency_s);
 }
 
+void fan_circles(Vec2 c, double r, Vec2 vel, int count, std::vector<CircleObstacle>& out) {
+  const double sp = norm(vel), a0 = std::atan2(vel.y, vel.x);
+  for (int k = 0; k < count; ++k) {
+    const double a = a0 + 2.0 * M_PI * k / count;
+    out.push_back({c, r, {sp * std::cos(a), sp * std::sin(a)}, true});
+  }
+}
+
 bool reachable_set(Vec2 last_p, double r, double speed, double age_s, double cap_m, Vec2 robot_pos,
                    double robot_radius, double near_m, CircleObstacle& out, bool keep_holding) {
   const double grown = r + std::min(std::max(0.0, speed * age_s), std::max(0.0, cap_m));

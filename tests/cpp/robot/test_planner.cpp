@@ -246,6 +246,34 @@ TEST(Planner, GrowingCircleIsKeptClearOfAsItGrows) {
   EXPECT_NEAR(obs[0].r_at(10.0), 0.7, 1e-12);
 }
 
+// The fan of a track: six transient circles at its place leaving at its speed, the first along
+// its velocity, evenly spaced; a standing robot beside the track is reached by one of them.
+TEST(Planner, FanCirclesLeaveAtTheTracksSpeedInEveryDirection) {
+  std::vector<CircleObstacle> out = {{{9.0, 9.0}, 0.1, {}}};
+  fan_circles({1.0, 0.0}, 0.2, {0.0, 0.3}, 6, out);
+  ASSERT_EQ(out.size(), 7u);
+  EXPECT_EQ(out[0].c.x, 9.0);  // appended
+  EXPECT_NEAR(out[1].vel.x, 0.0, 1e-12);
+  EXPECT_NEAR(out[1].vel.y, 0.3, 1e-12);
+  double sx = 0, sy = 0;
+  for (std::size_t k = 1; k < out.size(); ++k) {
+    EXPECT_TRUE(out[k].transient);
+    EXPECT_EQ(out[k].r, 0.2);
+    EXPECT_EQ(out[k].c.x, 1.0);
+    EXPECT_NEAR(norm(out[k].vel), 0.3, 1e-12);
+    sx += out[k].vel.x;
+    sy += out[k].vel.y;
+    if (k > 1) EXPECT_NEAR(out[k].vel.x * out[k - 1].vel.x + out[k].vel.y * out[k - 1].vel.y, 0.09 * 0.5, 1e-12);  // 60 deg apart
+  }
+  EXPECT_NEAR(sx, 0.0, 1e-12);
+  EXPECT_NEAR(sy, 0.0, 1e-12);
+  // The circle heading away from the velocity reaches a robot standing 0.6 m behind the track
+  // (along -vel) within 2 s; the one along vel does not.
+  const Vec2 robot_pos{1.0, -0.6};
+  EXPECT_LT(norm(out[4].at(1.0) - robot_pos), 0.2 + 0.15);
+  EXPECT_GT(norm(out[1].at(1.0) - robot_pos), 0.2 + 0.15);
+}
+
 TEST(Mixer, LimitsSpeedAccelerationAndKeepsCurvature) {
   RobotParams rp;
   DiffDriveMixer mx(rp);

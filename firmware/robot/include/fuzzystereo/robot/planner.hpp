@@ -82,6 +82,12 @@ class Planner {
 Pose2D predict_to_command_time(const Pose2D& pose, const BodyTwist& current, double latency_s,
                                std::vector<CircleObstacle>& obstacles);
 
+// Where a tracked obstacle of doubtful heading can go ([loop] near_track_moving = "fan", session 28):
+// `count` transient circles at c with radius r, each leaving at the track's speed |vel|, the first
+// along vel and the others evenly spaced round the circle. A track whose velocity is 60-140 deg off
+// its mover's (a mover that turned) is still covered where it goes. Appended to `out`.
+void fan_circles(Vec2 c, double r, Vec2 vel, int count, std::vector<CircleObstacle>& out);
+
 // Reachable set of an obstacle last measured at `last_p` (radius r) moving at `speed`, `age_s` ago:
 // a circle at last_p grown by speed * age_s, at most cap_m. Returned (true) only when it lies within
 // reach of the robot (centre distance <= near_m + grown) and does not already hold the
