@@ -92,6 +92,9 @@ StageStat stat_of(std::vector<double> v) {
 // that the map holds and the tracker does not (its point model would turn the jittering fragments
 // of a wall into ghost tracks); tracks slower than 0.04 m/s are left to the map; a track's velocity
 // is trusted after 4 associated frames; it is planned with for 2.5 s after its last measurement.
+// [loop] near_track_moving: what a near-track circle (a confirmed track without static support that
+// fails the moving test) gives the planner besides or instead of a static circle (session 28).
+enum class NearTrack { kStatic, kMoving, kBoth, kFan, kGrow };
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s, moving_window_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
@@ -102,7 +105,7 @@ struct LoopParams {
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres, ray_centres;
-  int near_track_moving;  // 0 = static circle, 1 = moving circle, 2 = both, 3 = fan, 4 = grow ([loop] near_track_moving)
+  NearTrack near_track_moving;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -120,7 +123,11 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.near_track_max_age_s = v.num("loop.near_track_max_age_s");
   p.near_track_reach_cap_m = v.num("loop.near_track_reach_cap_m");
   const std::string ntm = v.str("loop.near_track_moving");
-  p.near_track_moving = ntm == "moving" ? 1 : ntm == "both" ? 2 : ntm == "fan" ? 3 : ntm == "grow" ? 4 : 0;
+  p.near_track_moving = ntm == "moving" ? NearTrack::kMoving
+                        : ntm == "both" ? NearTrack::kBoth
+                        : ntm == "fan"  ? NearTrack::kFan
+                        : ntm == "grow" ? NearTrack::kGrow
+                                        : NearTrack::kStatic;  // the schema admits no other value
   p.static_track_cells = static_cast<int>(v.integer("loop.static_track_cells"));
   p.static_track_lag_s = v.num("loop.static_track_lag_s");
   p.static_track_keep_circles = v.flag("loop.static_track_keep_circles");
@@ -877,20 +884,20 @@ LoopResult RobotLoop::run() {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
             // of where it is (the tracks that follow a turned mover but fail the direction test).
-            if (lp.near_track_moving != 1 || supported) {
+            if (lp.near_track_moving != NearTrack::kMoving || supported) {
               obstacles.push_back({tr.pos(), tr.radius_m, {}, true});  // transient: never "blocked"
               // "grow": the circle grows at the track's speed over the planner's horizon (at most
               // near_track_reach_cap_m): where it can be whatever its heading.
-              if (lp.near_track_moving == 4 && !supported) {
+              if (lp.near_track_moving == NearTrack::kGrow && !supported) {
                 obstacles.back().grow = robot::norm(o.vel);
                 obstacles.back().grow_max = lp.near_track_reach_cap_m;
               }
               kinds.push_back('n');
             }
-            if ((lp.near_track_moving == 1 || lp.near_track_moving == 2) && !supported) {
+            if ((lp.near_track_moving == NearTrack::kMoving || lp.near_track_moving == NearTrack::kBoth) && !supported) {
               obstacles.push_back({tr.pos(), tr.radius_m, tr.vel(), true});
               kinds.push_back('n');
-            } else if (lp.near_track_moving == 3 && !supported) {
+            } else if (lp.near_track_moving == NearTrack::kFan && !supported) {
               // "fan": where it can be over the horizon at its speed in any direction (the velocity
               // of a track that follows a turning mover is often 60-140 deg off): copies of the
               // circle leaving at its filtered speed in kFan directions, the first along its velocity.
@@ -914,7 +921,7 @@ LoopResult RobotLoop::run() {
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;
               // "grow": the set goes on growing at that speed over the horizon, up to the cap.
-              if (lp.near_track_moving == 4 && speed > 0.0) {
+              if (lp.near_track_moving == NearTrack::kGrow && speed > 0.0) {
                 reach.grow = speed;
                 reach.grow_max = std::max(0.0, lp.near_track_reach_cap_m - (reach.r - tr.radius_m));
               }
