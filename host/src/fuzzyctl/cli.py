@@ -693,6 +693,48 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
         console.print(f"wrote {json_out}")
 
 
+@app.command("contacts", short_help="Trace the contacts of simulator run records: what was hit, what the robot knew.")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the contacts as JSON.")
+def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
+    """For each run that ended in a contact (`fuzzystereo sim suite --record DIR`; pass run
+    directories or a suite's record directory): the obstacle hit, its bearing, whether the camera saw
+    it, what the robot was doing, the last track near it, and a class (docs/robot.md "Session 29")."""
+    import json as _json
+
+    from rich.table import Table
+
+    from .contacts import contacts
+
+    dirs: list[Path] = []
+    for d in run_dirs:
+        if (d / "run.json").is_file():
+            dirs.append(d)
+        else:
+            sub = sorted(p for p in d.iterdir() if (p / "run.json").is_file()) if d.is_dir() else []
+            if not sub:
+                raise FatalError(f"{d}: neither a run record (run.json) nor a directory of them")
+            dirs.extend(sub)
+    r = contacts(dirs)
+    opt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
+    t = Table(title=f"contacts: {len(r['contacts'])} of {r['records']} records")
+    for col in ("run", "t s", "class", "obst", "mover v", "bearing deg", "robot v, w", "seen s ago", "tracked s ago", "track"):
+        t.add_column(col, justify="right")
+    for c in r["contacts"]:
+        tr = c.get("track")
+        t.add_row(c["run"], f"{c['time_s']:.1f}", c["class"], str(c.get("obstacle")),
+                  opt(c.get("obstacle_speed_mps"), ".2f") if c.get("mover") else "static",
+                  opt(c.get("bearing_deg"), "+.0f"), f"{c['robot_speed_mps']:.2f}, {c['robot_turn_radps']:+.2f}",
+                  opt(c.get("seen_s_before"), ".1f"), opt(c.get("tracked_s_before"), ".1f"),
+                  "-" if tr is None else f"#{tr['id']} {'C' if tr['confirmed'] else 'u'}{'M' if tr['mover'] else ''} "
+                                         f"{tr['speed_mps']:.2f} m/s")
+    console.print(t)
+    console.print(", ".join(f"{k}: {v}" for k, v in r["classes"].items()))
+    if json_out is not None:
+        json_out.write_text(_json.dumps(r, indent=2) + "\n")
+        console.print(f"wrote {json_out}")
+
+
 @app.command("suite-diff", short_help="Scenario-by-scenario comparison of closed-loop suite results.")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
 @click.option("--time-change", type=click.FloatRange(0, None), default=None,
