@@ -100,7 +100,7 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, blocked_confirm_range_m;
+      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m;
   bool stuck_keep_unseen;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
@@ -156,6 +156,8 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.stuck_exit_m = v.num("loop.stuck_exit_m");
   p.stuck_keep_unseen = v.flag("loop.stuck_keep_unseen");
   p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
+  p.memory_s = v.num("loop.memory_s");
+  p.memory_cap_m = v.num("loop.memory_cap_m");
   return p;
 }
 
@@ -790,7 +792,7 @@ LoopResult RobotLoop::run() {
       return std::fabs(robot::bearing_of(pose, p)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, [&](Vec2 p) { return !perception_fault && visible(p); });
-    if (lp.reach_lost_tracks || lp.look_before_turn_m > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, lp.moving_max_age_s);
+    if (lp.reach_lost_tracks || lp.look_before_turn_m > 0 || I.pp.w_memory > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, I.pp.w_memory > 0 ? std::max(lp.moving_max_age_s, lp.memory_s) : lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 
     // ---- plan ----
@@ -955,6 +957,29 @@ LoopResult RobotLoop::run() {
         }
       }
     }
+    // Soft memory ([planner] w_memory > 0, session 29): every confirmed mover-like track (filtered speed
+    // >= moving_speed_mps, no static support), live or deleted, whose last measurement lies out of the
+    // view and is at most memory_s old, leaves a soft circle where it may be now: its last measured
+    // position, radius grown at its speed since then (at most memory_cap_m), growing on over the
+    // planner's horizon. The arcs pay for entering it (the planner's cost), never are refused: the
+    // contacts of sessions 26-29 are arcs that turn into a side where such a mover was seen seconds
+    // before, while hard circles there (reachable sets, look-before-turn) cost more timeouts than they saved.
+    std::vector<CircleObstacle> memory;
+    if (I.pp.w_memory > 0 && lp.memory_s > 0) {
+      const auto remember = [&](const robot::Track& tr) {
+        if (!tr.confirmed) return;
+        const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);
+        const double speed = robot::norm(tr.vel());
+        if (age_s <= 0.0 || age_s > lp.memory_s || speed < lp.moving_speed_mps || visible(tr.last_meas_p)) return;
+        if (static_support(tr)) return;
+        CircleObstacle m{tr.last_meas_p, tr.radius_m + std::min(speed * age_s, lp.memory_cap_m), {}, true};
+        m.grow = speed;
+        m.grow_max = std::max(0.0, lp.memory_cap_m - (m.r - tr.radius_m));
+        memory.push_back(m);
+      };
+      for (const auto& tr : tracker.tracks()) remember(tr);
+      for (const auto& tr : lost_tracks.lost()) remember(tr);
+    }
     // Latency compensation: the command computed now reaches the motors after the processing
     // latency, and until then the robot drives the last command and moving obstacles go on moving.
     // Plan (and check the front) from that predicted moment: pose advanced along the last command,
@@ -967,7 +992,7 @@ LoopResult RobotLoop::run() {
     }
     // Ground the camera saw free (or a surface on) within [loop] seen_max_age_s: [planner] unseen_check_s.
     const std::int64_t seen_after_ns = t_frame - t0 - static_cast<std::int64_t>(lp.seen_max_age_s * 1e9);
-    robot::PlanContext ctx{&last_route, {}};
+    robot::PlanContext ctx{&last_route, {}, memory.empty() ? nullptr : &memory};
     // Inside this frame's view counts as seen: where the camera looks now but measured nothing (no
     // texture, too near) the map and the front stop decide; the rule is about turning into the sides.
     if (I.pp.unseen_check_s > 0)

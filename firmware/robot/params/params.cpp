@@ -72,6 +72,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
   p.unseen_check_s = v.num("planner.unseen_check_s");
+  p.w_memory = v.num("planner.w_memory");
   return p;
 }
 

@@ -168,6 +168,25 @@ bool drives_into_unseen(const Pose2D& p0, double v, double w, double lead, const
   return false;
 }
 
+// Soft memory cost: the deepest the robot's disc enters any memory circle along the arc, over the
+// horizon — 0 outside every circle, 1 with the robot's centre on a circle's centre. An arc that leads
+// out of a circle the robot is already in scores its depth at the first step, less than one that goes
+// deeper.
+double memory_depth(const Pose2D& p0, double v, double w, const std::vector<CircleObstacle>& mem,
+                    const PlannerParams& pp, const RobotParams& rp) {
+  double depth = 0.0;
+  for (double t = pp.sim_step_s; t <= pp.horizon_s + 1e-9; t += pp.sim_step_s) {
+    const Pose2D p = integrate_pose(p0, {v, w}, t);
+    for (const auto& m : mem) {
+      const double reach = m.r_at(t) + rp.radius_m;  // a memory circle may grow over the horizon
+      const Vec2 c = m.at(t);
+      const double d = std::hypot(p.x - c.x, p.y - c.y);
+      if (d < reach) depth = std::max(depth, 1.0 - d / reach);
+    }
+  }
+  return depth;
+}
+
 struct ArcEval {
   double t_collide = kInf;  // first time the hard margin is violated
   double min_gap = kInf;    // smallest surface gap before that [m]
@@ -409,6 +428,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   const double carrot_dist0 = norm(out.carrot - pos);
   const bool check_seen = pp_.unseen_check_s > 0 && static_cast<bool>(ctx.recently_seen);
   const double lead = rp_.radius_m + pp_.safety_margin_m;
+  const bool use_memory = pp_.w_memory > 0 && ctx.memory != nullptr && !ctx.memory->empty();
   for (int iv = 0; iv < dw.nv; ++iv) {
     for (int iw = 0; iw < dw.nw; ++iw) {
       const auto [v, w] = dw.at(iv, iw);
@@ -438,7 +458,8 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
       const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
       const double cost = pp_.w_heading * heading / M_PI + pp_.w_progress * progress +
                           pp_.w_clearance * clear_pen + pp_.w_speed * (1.0 - v / std::max(1e-6, rp_.max_speed_mps)) +
-                          2.0 * collide_pen;
+                          2.0 * collide_pen +
+                          (use_memory ? pp_.w_memory * memory_depth(pose, v, w, *ctx.memory, pp_, rp_) : 0.0);
       if (cost < best_cost) {
         best_cost = cost;
         best = {v, w};

@@ -246,6 +246,41 @@ TEST(Planner, GrowingCircleIsKeptClearOfAsItGrows) {
   EXPECT_NEAR(obs[0].r_at(10.0), 0.7, 1e-12);
 }
 
+// Soft memory ([planner] w_memory, session 29): a remembered mover's circle on the left of the way
+// ahead costs the arcs that enter it, so the robot keeps further out of it (here: slower), but never refuses an arc: a
+// circle over the whole window still leaves a forward command, and without w_memory it changes nothing.
+TEST(Planner, MemoryCirclesCostButNeverBlock) {
+  const RobotParams rp = robot();
+  PlannerParams pp = planner();
+  const std::vector<CircleObstacle> mem = {{{1.2, 0.35}, 0.4, {}, true}};
+  PlanContext ctx;
+  ctx.memory = &mem;
+  const PlanOutput off = Planner(pp, rp).plan({0, 0, 0}, {0.3, 0}, {4, 0}, {}, ctx);
+  const PlanOutput none = Planner(pp, rp).plan({0, 0, 0}, {0.3, 0}, {4, 0}, {});
+  EXPECT_DOUBLE_EQ(off.cmd.v, none.cmd.v);  // w_memory = 0: the memory is ignored
+  EXPECT_DOUBLE_EQ(off.cmd.omega, none.cmd.omega);
+  pp.w_memory = 3.0;
+  const PlanOutput on = Planner(pp, rp).plan({0, 0, 0}, {0.3, 0}, {4, 0}, {}, ctx);
+  EXPECT_EQ(on.status, PlanStatus::kMoving);
+  EXPECT_GT(on.cmd.v, 0.0);
+  // How deep each arc enters the circle over the horizon: less on the chosen one.
+  const auto depth = [&](BodyTwist c) {
+    double d = 0.0;
+    for (double t = pp.sim_step_s; t <= pp.horizon_s + 1e-9; t += pp.sim_step_s) {
+      const Pose2D q = integrate_pose({0, 0, 0}, c, t);
+      d = std::max(d, 1.0 - norm(q.pos() - mem[0].c) / (mem[0].r + rp.radius_m));
+    }
+    return d;
+  };
+  EXPECT_LT(depth(on.cmd), depth(off.cmd) - 0.05);
+  // A circle over everything: still a forward command (soft).
+  const std::vector<CircleObstacle> all = {{{1.0, 0.0}, 5.0, {}, true}};
+  ctx.memory = &all;
+  const PlanOutput covered = Planner(pp, rp).plan({0, 0, 0}, {0.3, 0}, {4, 0}, {}, ctx);
+  EXPECT_EQ(covered.status, PlanStatus::kMoving);
+  EXPECT_GT(covered.cmd.v, 0.0);
+}
+
 // The fan of a track: six transient circles at its place leaving at its speed, the first along
 // its velocity, evenly spaced; a standing robot beside the track is reached by one of them.
 TEST(Planner, FanCirclesLeaveAtTheTracksSpeedInEveryDirection) {

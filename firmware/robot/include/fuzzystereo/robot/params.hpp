@@ -91,6 +91,9 @@ struct PlannerParams {
   double unseen_check_s = 0.0;       // look where you drive: an arc with v > 0 whose leading point
                                      // (radius + safety margin ahead) enters ground the camera has not
                                      // seen recently within this time is not driven; 0 = off [s]
+  double w_memory = 0.0;             // cost weight: how deep an arc enters the remembered places of
+                                     // movers out of view (PlanContext::memory; docs/robot.md
+                                     // "Session 29"); 0 = off
 };
 
 // [watchdog]

@@ -48,6 +48,9 @@ struct PlanContext {
   // Whether the camera saw the ground point recently (the loop: ObstacleMap::last_seen_ns within
   // [loop] seen_max_age_s), for "look where you drive" ([planner] unseen_check_s > 0); empty = no check.
   std::function<bool(Vec2)> recently_seen;
+  // Soft circles where a mover that left the view may be now ([planner] w_memory > 0): they cost,
+  // never block; nullptr = none.
+  const std::vector<CircleObstacle>* memory = nullptr;
 };
 
 class Planner {
