@@ -33,7 +33,8 @@ def _record(tmp: Path, name: str, obstacle: dict, cmd: tuple[float, float], resu
         tracks = []
         if track_until is not None and t <= track_until:
             tracks.append({"id": 7, "confirmed": True, "mover": track_mover, "p": [x, y], "v": [vx, vy]})
-        lines.append(json.dumps({"frame": k, "t": t, "true_pose": [0.0, 0.0, 0.0], "cmd": list(cmd), "tracks": tracks}))
+        lines.append(json.dumps({"frame": k, "t": t, "pose": [0.0, 0.0, 0.0], "true_pose": [0.0, 0.0, 0.0],
+                                "cmd": list(cmd), "tracks": tracks}))
     (d / "frames.jsonl").write_text("\n".join(lines) + "\n")
     return d
 
@@ -97,6 +98,9 @@ def test_cli_expands_a_suite_record_directory(tmp_path: Path, capsys) -> None:
     assert j["records"] == 2 and len(j["contacts"]) == 1 and j["classes"]["in view"] == 1
     assert "suite-1-0" in capsys.readouterr().out
     assert contacts([suite / "suite-1-1"])["contacts"] == []
+    # the suite report names each contact's class beside the run
+    assert main(["suite-report", str(suite)]) == 0
+    assert "in view, +10 deg" in (suite / "suite.html").read_text()
 
 
 def test_a_record_without_truth_is_named(tmp_path: Path) -> None:

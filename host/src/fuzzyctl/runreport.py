@@ -276,6 +276,21 @@ def _run_dirs(record_dir: Path) -> list[Path]:
     return sorted(p.parent for p in Path(record_dir).glob("*/run.json"))
 
 
+def _contact_text(run_dir: Path) -> str:
+    """The contact class of a run record and the bearing of the obstacle hit ('' without a contact or
+    without the simulated truth)."""
+    from .contacts import trace_contact
+
+    try:
+        c = trace_contact(run_dir)
+    except FatalError:
+        return ""
+    if c is None:
+        return ""
+    b = c.get("bearing_deg")
+    return c["class"] + ("" if b is None else f", {b:+.0f} deg")
+
+
 def write_suite_report(record_dir: Path, out: Path, failures_only: bool = True) -> tuple[Path, int, int]:
     """One HTML page for a suite's run records (``fuzzystereo sim suite --record DIR``): a table of
     every run (status, time, path, clearance) and the trajectory plot of each failed run (of every
@@ -293,30 +308,32 @@ def write_suite_report(record_dir: Path, out: Path, failures_only: bool = True) 
         shortest = res.get("shortest_m")
         solvable = isinstance(shortest, (int, float)) and math.isfinite(shortest)
         ok = bool(res.get("reached")) if solvable else bool(res.get("safe_stop"))
-        runs.append((ok, d.name, status, run, frames))
+        runs.append((ok, d.name, status, run, frames, _contact_text(d)))
     runs.sort(key=lambda r: (r[0], r[1]))
     failed = sum(1 for r in runs if not r[0])
     rows = []
-    for ok, name, status, run, _ in runs:
+    for ok, name, status, run, _, contact in runs:
         res = run.get("result", {})
         colour = "" if ok else " style='color:#b00'"
         rows.append(
             f"<tr{colour}><td><a href='#{html.escape(name)}'>{html.escape(name)}</a></td><td>{html.escape(status)}</td>"
             f"<td>{_fmt(res.get('time_s', ''))}</td><td>{_fmt(res.get('path_m', ''))}</td>"
-            f"<td>{_fmt(res.get('shortest_m', ''))}</td><td>{_fmt(res.get('min_clearance_m', ''))}</td></tr>")
+            f"<td>{_fmt(res.get('shortest_m', ''))}</td><td>{_fmt(res.get('min_clearance_m', ''))}</td>"
+            f"<td>{html.escape(contact)}</td></tr>")
     figs = []
-    for ok, name, status, run, frames in runs:
+    for ok, name, status, run, frames, contact in runs:
         if ok and failures_only:
             continue
+        caption = f"{name}: {status}" + (f" ({contact})" if contact else "")
         figs.append(f"<figure id='{html.escape(name)}'><img src='{_thumb_png(trajectory_figure(run, frames))}'>"
-                    f"<figcaption>{html.escape(name)}: {html.escape(status)}</figcaption></figure>")
+                    f"<figcaption>{html.escape(caption)}</figcaption></figure>")
     parts = [
         "<!doctype html><meta charset='utf-8'><title>fuzzystereo suite</title>",
         "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}td,th{padding:2px 8px;text-align:left}"
         "figure{display:inline-block;margin:6px;vertical-align:top}img{max-width:380px}</style>",
         f"<h1>fuzzystereo suite — {html.escape(str(record_dir))}</h1>",
         f"<p>{len(runs)} runs, {failed} failed (collision, struck, timeout, or no safe stop where no path exists)</p>",
-        "<table><tr><th>run</th><th>status</th><th>time s</th><th>path m</th><th>shortest m</th><th>min clearance m</th></tr>"
+        "<table><tr><th>run</th><th>status</th><th>time s</th><th>path m</th><th>shortest m</th><th>min clearance m</th><th>contact (fuzzyctl contacts)</th></tr>"
         + "".join(rows) + "</table>",
         "<h2>" + ("Failed runs" if failures_only else "All runs") + "</h2>" + ("".join(figs) or "<p>none</p>"),
     ]
