@@ -972,7 +972,13 @@ LoopResult RobotLoop::run() {
         const double speed = robot::norm(tr.vel());
         if (age_s <= 0.0 || age_s > lp.memory_s || speed < lp.moving_speed_mps || visible(tr.last_meas_p)) return;
         if (static_support(tr)) return;
-        CircleObstacle m{tr.last_meas_p, tr.radius_m + std::min(speed * age_s, lp.memory_cap_m), {}, true};
+        // The reachable set of the rules above (grown by speed x age, at most memory_cap_m), kept when
+        // it holds the robot too (a soft cost: the robot then prefers arcs that lead out of it).
+        CircleObstacle m;
+        if (!robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.memory_cap_m, pose.pos(), I.rp.radius_m,
+                                  lp.plan_radius_m, m, true))
+          return;
+        m.transient = true;
         m.grow = speed;
         m.grow_max = std::max(0.0, lp.memory_cap_m - (m.r - tr.radius_m));
         memory.push_back(m);
