@@ -80,6 +80,10 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");
   p.split_rounds = v.integer("detect.split_rounds");
+  p.neck_min_width_px = v.integer("detect.neck_min_width_px");
+  p.neck_max_share = v.num("detect.neck_max_share");
+  p.neck_min_px = v.integer("detect.neck_min_px");
+  p.neck_foot_share = v.num("detect.neck_foot_share");
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_gap_vertical_px = v.integer("detect.merge_gap_vertical_px");

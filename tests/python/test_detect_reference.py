@@ -317,3 +317,23 @@ def test_gap_to_the_foot_closed_unless_hidden():
     assert run(20, 15.0)[1] == 60         # 51 % hidden: F's lower part is behind N
     assert run(20, 10.625)[1] == 99       # N within merge_max_rel_disparity: not an occluder
     assert run(10, 15.0, foot_gap_extend=False) == (99, 60)
+
+
+def test_split_necks_cuts_a_strip_at_the_feet():
+    # The scene of the C++ test DetectScene.TwoObstaclesJoinedAtTheirFeetAreCutAtTheNeck.
+    comp = np.zeros((70, 120), np.int32)
+    comp[10:60, 10:40] = comp[10:60, 70:100] = comp[54:60, 40:70] = 1
+    s, n = refdet.split_necks(comp, 1, 12, 0.3, 100)
+    assert n == 2 and s[30, 20] == 1 and s[30, 80] == 2 and s[57, 55] == 0 and s[57, 39] == 1
+    assert np.array_equal(refdet.split_necks(comp, 1, 12, 0.3, 100, 0.2)[0], s)
+    top = comp.copy()
+    top[10:60, 40:70] = 0
+    top[10:16, 40:70] = 1
+    assert refdet.split_necks(top, 1, 12, 0.3, 100, 0.2)[1] == 1
+    assert refdet.split_necks(top, 1, 12, 0.3, 100, 0.0)[1] == 2
+    for args in [(31, 0.3, 100), (12, 0.3, 1501), (12, 0.1, 100), (0, 0.3, 100)]:
+        assert np.array_equal(refdet.split_necks(comp, 1, *args)[0], comp), args
+    tail = comp.copy()
+    tail[10:54, 70:100] = 0
+    tail[54:60, 70:100] = 1
+    assert refdet.split_necks(tail, 1, 12, 0.3, 100)[1] == 1

@@ -536,5 +536,51 @@ TEST(DetectScene, TwoDepthsJoinedByARampAreSplit) {
   EXPECT_EQ(ns, 1);
 }
 
+TEST(DetectScene, TwoObstaclesJoinedAtTheirFeetAreCutAtTheNeck) {
+  // Two posts (columns 10-39 and 70-99, rows 10-59) joined by a strip 6 rows high at their feet (rows
+  // 54-59, columns 40-69): the strip's 30 columns hold 6 px each, under 0.3 x the posts' 50 px, so the
+  // component is cut there (the strip's pixels dropped) into the two posts.
+  ImageI32 comp(120, 70, 0);
+  for (int y = 10; y < 60; ++y)
+    for (int x = 10; x < 100; ++x)
+      if (x < 40 || x >= 70 || y >= 54) comp.at(x, y) = 1;
+  int n = 0;
+  ImageI32 s = detect::split_necks(comp, 1, 12, 0.3, 100, 0.0, &n);
+  ASSERT_EQ(n, 2);
+  EXPECT_EQ(s.at(20, 30), 1);
+  EXPECT_EQ(s.at(80, 30), 2);
+  EXPECT_EQ(s.at(55, 57), 0);  // the neck
+  EXPECT_EQ(s.at(39, 57), 1);  // the posts keep their own columns
+  // The foot condition: the strip lies in the lowest 6 / 50 rows, so a foot share of 0.2 still cuts,
+  // a strip at the top (rows 10-15) does not.
+  EXPECT_EQ(detect::split_necks(comp, 1, 12, 0.3, 100, 0.2, &n).data, s.data);
+  ImageI32 top = comp;
+  for (int y = 10; y < 60; ++y)
+    for (int x = 40; x < 70; ++x) top.at(x, y) = y < 16 ? 1 : 0;
+  detect::split_necks(top, 1, 12, 0.3, 100, 0.2, &n);
+  EXPECT_EQ(n, 1);
+  detect::split_necks(top, 1, 12, 0.3, 100, 0.0, &n);  // at any height
+  EXPECT_EQ(n, 2);
+  // Too narrow a run (30 thin columns < 31), a run at the box side (a tail), too few pixels on one side,
+  // a thick strip, or off: unchanged.
+  EXPECT_EQ(detect::split_necks(comp, 1, 31, 0.3, 100, 0.0, &n).data, comp.data);
+  EXPECT_EQ(n, 1);
+  ImageI32 tail(120, 70, 0);
+  for (int y = 10; y < 60; ++y)
+    for (int x = 10; x < 100; ++x)
+      if (x < 40 || y >= 54) tail.at(x, y) = 1;
+  EXPECT_EQ(detect::split_necks(tail, 1, 12, 0.3, 100, 0.0, &n).data, tail.data);
+  EXPECT_EQ(detect::split_necks(comp, 1, 12, 0.3, 1501, 0.0, &n).data, comp.data);  // each post: 1500 px
+  EXPECT_EQ(detect::split_necks(comp, 1, 12, 0.1, 100, 0.0, &n).data, comp.data);   // 6 > 0.1 x 50
+  EXPECT_EQ(detect::split_necks(comp, 1, 0, 0.3, 100, 0.0, &n).data, comp.data);
+  // Other labels are left alone; labels are renumbered in raster order.
+  ImageI32 two = comp;
+  for (int y = 62; y < 68; ++y)
+    for (int x = 0; x < 5; ++x) two.at(x, y) = 2;
+  s = detect::split_necks(two, 2, 12, 0.3, 100, 0.0, &n);
+  ASSERT_EQ(n, 3);
+  EXPECT_EQ(s.at(2, 65), 3);
+}
+
 }  // namespace
 }  // namespace fs

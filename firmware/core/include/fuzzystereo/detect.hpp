@@ -100,6 +100,12 @@ struct DetectParams {
   double split_max_valley = 0.1;   // ... when at most this share of its pixels lies between the modes
   int split_min_px = 100;          // ... and each side has at least this many pixels
   int split_rounds = 2;            // splitting passes (a component over three depths needs two)
+  int neck_min_width_px = 12;      // cut a component at a run of at least this many thin columns (0 = off)
+  double neck_max_share = 0.3;     // ... a column is thin when it holds <= this share of the component's
+                                   // 75th-percentile column count
+  int neck_min_px = 100;           // ... and each side of the cut keeps at least this many pixels
+  double neck_foot_share = 0.0;    // ... and (> 0) the thin columns' pixels all lie in this lowest share of
+                                   // the box rows (a strip at the feet); 0 = at any height
   double merge_edge_rel_disparity = 0.05;  // side-by-side groups whose facing edges' disparities differ <= this
                                        // share join (a slanted surface cut by k-means; 0 = off)
   int merge_edge_columns = 4;      // ... the edge = this many outermost columns of each group [px]
@@ -293,6 +299,16 @@ int bimodal_threshold_q4(const std::vector<std::int32_t>& hist, int lo, int min_
 // first appearance. min_rel <= 0 or rounds <= 0: unchanged.
 ImageI32 split_bimodal_components(const ImageI32& components, int count, const ImageI16& disp, int min_px,
                                   double min_rel, double max_valley, int rounds, int* out_count);
+// Necks (docs/detection.md "(e) Necks", session 30): per component, the pixel count of each column of
+// its box; a run of >= min_width consecutive columns each holding <= max_share of the component's
+// 75th-percentile column count, with >= min_px pixels and a column above that share on each side, is
+// a neck (two obstacles joined through a thin strip, e.g. the road at their feet that the matcher gave
+// their disparity). The neck's pixels are dropped and the rest relabelled (8-connectivity); labels
+// renumbered in raster order of first appearance. min_width <= 0: unchanged.
+// foot_share > 0: only thin runs whose every column's topmost pixel lies in the lowest foot_share of the
+// component's box rows (a strip at the feet).
+ImageI32 split_necks(const ImageI32& components, int count, int min_width, double max_share, int min_px,
+                     double foot_share, int* out_count);
 
 // Box, size, median disparity, Z, X and class per component (components >= min area), nearest
 // first; fills `labels` (0 none, id+1).

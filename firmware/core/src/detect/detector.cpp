@@ -116,6 +116,22 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.components = detect::split_bimodal_components(r.components, n, disp, p.split_min_px, p.split_min_rel,
                                                   p.split_max_valley, p.split_rounds, &n);
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
+  // Necks (session 30): an obstacle that fragment merging or a thin strip of pixels joined across a
+  // run of thin columns is cut there and measured again, without merging.
+  if (p.neck_min_width_px > 0) {
+    int nn = 0;
+    const ImageI32 cut = detect::split_necks(r.obstacle_labels, int(r.obstacles.size()), p.neck_min_width_px,
+                                             p.neck_max_share, p.neck_min_px, p.neck_foot_share, &nn);
+    if (cut.data != r.obstacle_labels.data) {
+      DetectParams pm = p;
+      // Merging off (the pieces were one group and stay apart), except across a nearer occluder:
+      // a farther obstacle seen on both sides of a thin nearer one is one obstacle (merge_occluded).
+      pm.merge_gap_px = 0;
+      pm.merge_edge_rel_disparity = 0;
+      pm.contain_min_inside = 0;
+      r.obstacles = detect::measure_obstacles(cut, nn, disp, calib, pm, &r.obstacle_labels);
+    }
+  }
   // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
   detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
   // Seen through (session 8): a farther obstacle enclosed above and below by a nearer one.

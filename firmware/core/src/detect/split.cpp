@@ -26,6 +26,46 @@ int find(std::vector<int>& parent, int a) {
   }
   return a;
 }
+
+// 8-connected labelling of equal non-zero keys (W, NW, N, NE neighbours, union-find with the
+// smaller label as root); labels 1..m in raster order of first appearance.
+ImageI32 relabel_keys(const ImageI32& keys, int* out_count) {
+  const int w = keys.width, h = keys.height;
+  ImageI32 tmp(w, h, 0);
+  std::vector<int> parent{0};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int k = keys.at(x, y);
+      if (k == 0) continue;
+      int cur = 0;
+      const int nx[4] = {x - 1, x - 1, x, x + 1}, ny[4] = {y, y - 1, y - 1, y - 1};
+      for (int j = 0; j < 4; ++j) {
+        if (nx[j] < 0 || nx[j] >= w || ny[j] < 0 || keys.at(nx[j], ny[j]) != k) continue;
+        const int nl = tmp.at(nx[j], ny[j]);
+        if (cur == 0) {
+          cur = nl;
+        } else {
+          const int a = find(parent, cur), b = find(parent, nl);
+          if (a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);
+        }
+      }
+      if (cur == 0) {
+        cur = int(parent.size());
+        parent.push_back(cur);
+      }
+      tmp.at(x, y) = cur;
+    }
+  std::vector<int> final_label(parent.size(), 0);
+  int m = 0;
+  for (auto& v : tmp.data) {
+    if (v == 0) continue;
+    const int r = find(parent, v);
+    if (final_label[std::size_t(r)] == 0) final_label[std::size_t(r)] = ++m;
+    v = final_label[std::size_t(r)];
+  }
+  *out_count = m;
+  return tmp;
+}
 }  // namespace
 
 int bimodal_threshold_q4(const std::vector<std::int32_t>& hist, int lo, int min_px, double min_rel, double max_valley) {
@@ -112,43 +152,96 @@ ImageI32 split_bimodal_components(const ImageI32& components, int count, const I
     ImageI32 keys(w, h, 0);
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) keys.at(x, y) = key(x, y);
-    ImageI32 tmp(w, h, 0);
-    std::vector<int> parent{0};
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const int k = keys.at(x, y);
-        if (k == 0) continue;
-        int cur = 0;
-        const int nx[4] = {x - 1, x - 1, x, x + 1}, ny[4] = {y, y - 1, y - 1, y - 1};
-        for (int j = 0; j < 4; ++j) {
-          if (nx[j] < 0 || nx[j] >= w || ny[j] < 0 || keys.at(nx[j], ny[j]) != k) continue;
-          const int nl = tmp.at(nx[j], ny[j]);
-          if (cur == 0) {
-            cur = nl;
-          } else {
-            const int a = find(parent, cur), b = find(parent, nl);
-            if (a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);
-          }
-        }
-        if (cur == 0) {
-          cur = int(parent.size());
-          parent.push_back(cur);
-        }
-        tmp.at(x, y) = cur;
-      }
-    std::vector<int> final_label(parent.size(), 0);
     int m = 0;
-    for (auto& v : tmp.data) {
-      if (v == 0) continue;
-      const int r = find(parent, v);
-      if (final_label[std::size_t(r)] == 0) final_label[std::size_t(r)] = ++m;
-      v = final_label[std::size_t(r)];
-    }
+    ImageI32 tmp = relabel_keys(keys, &m);
     lab = std::move(tmp);
     n = m;
   }
   if (out_count) *out_count = n;
   return lab;
+}
+
+ImageI32 split_necks(const ImageI32& components, int count, int min_width, double max_share, int min_px,
+                     double foot_share, int* out_count) {
+  if (min_width <= 0 || count <= 0) {
+    if (out_count) *out_count = count;
+    return components;
+  }
+  const int w = components.width, h = components.height;
+  // Column counts per component over its box.
+  std::vector<int> x0(std::size_t(count) + 1, w), x1(std::size_t(count) + 1, -1);
+  std::vector<int> y0(std::size_t(count) + 1, h), y1(std::size_t(count) + 1, -1);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = components.row(y);
+    for (int x = 0; x < w; ++x)
+      if (l[x]) {
+        const std::size_t c = std::size_t(l[x]);
+        x0[c] = std::min(x0[c], x), x1[c] = std::max(x1[c], x), y0[c] = std::min(y0[c], y), y1[c] = std::max(y1[c], y);
+      }
+  }
+  std::vector<std::size_t> off(std::size_t(count) + 2, 0);
+  for (int c = 1; c <= count; ++c)
+    off[std::size_t(c) + 1] = off[std::size_t(c)] + std::size_t(x1[std::size_t(c)] >= x0[std::size_t(c)] ? x1[std::size_t(c)] - x0[std::size_t(c)] + 1 : 0);
+  std::vector<std::int32_t> cols(off[std::size_t(count) + 1], 0), top(off[std::size_t(count) + 1], h);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = components.row(y);
+    for (int x = 0; x < w; ++x)
+      if (l[x]) {
+        const std::size_t k = off[std::size_t(l[x])] + std::size_t(x - x0[std::size_t(l[x])]);
+        ++cols[k];
+        top[k] = std::min<std::int32_t>(top[k], y);
+      }
+  }
+
+  // Per component, the columns to drop (cut[] over the whole image width, per component run).
+  std::vector<std::uint8_t> cut(cols.size(), 0);
+  bool any = false;
+  for (int c = 1; c <= count; ++c) {
+    const std::size_t o = off[std::size_t(c)], nc = off[std::size_t(c) + 1] - o;
+    if (nc < std::size_t(min_width) + 2) continue;
+    std::vector<std::int32_t> sorted(cols.begin() + std::ptrdiff_t(o), cols.begin() + std::ptrdiff_t(o + nc));
+    const std::size_t q = (3 * (nc - 1)) / 4;  // 75th percentile (lower)
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(q), sorted.end());
+    const double thin = max_share * double(sorted[q]);
+    std::vector<std::int64_t> prefix(nc + 1, 0);  // pixels left of column i
+    for (std::size_t i = 0; i < nc; ++i) prefix[i + 1] = prefix[i] + cols[o + i];
+    std::size_t i = 0;
+    while (i < nc) {
+      if (double(cols[o + i]) > thin) {
+        ++i;
+        continue;
+      }
+      std::size_t j = i;
+      while (j < nc && double(cols[o + j]) <= thin) ++j;  // thin run [i, j)
+      const bool wide = j - i >= std::size_t(min_width), inside = i > 0 && j < nc;
+      bool foot = true;  // the thin run lies in the lowest foot_share of the box rows
+      if (foot_share > 0) {
+        const double limit = y1[std::size_t(c)] - foot_share * double(y1[std::size_t(c)] - y0[std::size_t(c)] + 1);
+        for (std::size_t k = i; k < j; ++k) foot = foot && double(top[o + k]) >= limit;
+      }
+      if (wide && inside && foot && prefix[i] >= min_px && prefix[nc] - prefix[j] >= min_px) {
+        for (std::size_t k = i; k < j; ++k) cut[o + k] = 1;
+        any = true;
+      }
+      i = j;
+    }
+  }
+  if (!any) {
+    if (out_count) *out_count = count;
+    return components;
+  }
+  ImageI32 keys(w, h, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = components.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int c = l[x];
+      if (c && !cut[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])]) keys.at(x, y) = c;
+    }
+  }
+  int m = 0;
+  ImageI32 out = relabel_keys(keys, &m);
+  if (out_count) *out_count = m;
+  return out;
 }
 
 }  // namespace fs::detect

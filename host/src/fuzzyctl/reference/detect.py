@@ -879,6 +879,110 @@ def extend_over_gap(obstacles: list, ol: np.ndarray, a: float, b: float, horizon
             o.box = (x0, y0, x1, foot)
 
 
+def measure_obstacles(comp: np.ndarray, n: int, disp: np.ndarray, calib: dict, p: DetectParams) -> tuple[list, np.ndarray]:
+    """Fragment merging, edge continuity, occlusion merging, contained groups, then box, median disparity,
+    Z, X and class per group (filters: area, range, height, physical area); nearest first, and the obstacle
+    label image (0 none, id + 1)."""
+    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
+                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)),
+                            int(getattr(p, "merge_gap_vertical_px", 0)), int(getattr(p, "merge_bridge_max_px", 0)),
+                            float(getattr(p, "merge_bridge_max_overlap", 1.0)))
+    roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
+                        int(p.merge_edge_columns))
+    roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
+                           int(p.merge_occluded_max_gap_px), int(p.min_area_px))
+    roots = resolve_contained(comp, disp, n, roots, float(p.contain_min_inside), float(p.contain_merge_rel_disparity),
+                              int(p.contain_drop_max_px), bool(p.contain_drop_nearer_only), int(p.min_area_px),
+                              str(p.contain_surround))
+    comp = roots[comp] * (comp > 0)
+    obstacles = []
+    comp_ids = []
+    for c in range(1, n + 1):
+        ys, xs = np.nonzero(comp == c)
+        if len(xs) < p.min_area_px:
+            continue
+        d = max(float(np.median(disp[ys, xs])), 1.0 / 16)
+        z = calib["focal_px"] * calib["baseline_m"] / d
+        if p.max_distance_m > 0 and z > p.max_distance_m:
+            continue  # range, docs/detection.md "(e)"
+        if (ys.max() - ys.min() + 1) * z / calib["focal_px"] < p.min_height_m:
+            continue
+        if p.min_area_m2 > 0 and len(xs) * (z / calib["focal_px"]) ** 2 < p.min_area_m2:
+            continue  # physical area (pixels * (Z/f)^2), docs/detection.md "(e)"
+        x0, x1 = int(xs.min()), int(xs.max())
+        cls = "near" if z < p.near_m else "far" if z >= p.far_m else "mid"
+        obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
+                                  (0.5 * (x0 + x1) - calib["cx"]) * z / calib["focal_px"], cls))
+        comp_ids.append(c)
+    order = sorted(range(len(obstacles)), key=lambda i: -obstacles[i].disparity_px)
+    ol = np.zeros(comp.shape, np.int32)
+    out = []
+    for rank, i in enumerate(order):
+        o = obstacles[i]
+        o.id = rank
+        ol[comp == comp_ids[i]] = rank + 1
+        out.append(o)
+    return out, ol
+
+
+def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_px: int,
+                foot_share: float = 0.0) -> tuple[np.ndarray, int]:
+    """Per label, the pixel count of each column of its box; a run of >= min_width columns each holding
+    <= max_share of the label's 75th-percentile (lower) column count, with >= min_px pixels and a wider
+    column on each side, is dropped (with foot_share > 0 only when every column's topmost pixel lies in the
+    lowest foot_share of the box rows); the rest relabelled by 8-connected components of equal labels, in
+    raster order of first appearance (docs/detection.md "(e) Necks")."""
+    if min_width <= 0 or n <= 0:
+        return comp, n
+    keep = comp > 0
+    cut_any = False
+    for c in range(1, n + 1):
+        ys, xs = np.nonzero(comp == c)
+        if len(xs) == 0:
+            continue
+        x0, x1, y0, y1 = xs.min(), xs.max(), ys.min(), ys.max()
+        nc = x1 - x0 + 1
+        if nc < min_width + 2:
+            continue
+        cols = np.bincount(xs - x0, minlength=nc)
+        top = np.full(nc, 1 << 30)
+        np.minimum.at(top, xs - x0, ys)
+        thin = max_share * float(np.sort(cols)[(3 * (nc - 1)) // 4])
+        prefix = np.concatenate([[0], np.cumsum(cols)])
+        i = 0
+        while i < nc:
+            if cols[i] > thin:
+                i += 1
+                continue
+            j = i
+            while j < nc and cols[j] <= thin:
+                j += 1
+            foot = foot_share <= 0 or bool(np.all(top[i:j] >= y1 - foot_share * (y1 - y0 + 1)))
+            if j - i >= min_width and i > 0 and j < nc and prefix[i] >= min_px and prefix[nc] - prefix[j] >= min_px and foot:
+                keep[:, x0 + i:x0 + j] &= comp[:, x0 + i:x0 + j] != c
+                cut_any = True
+            i = j
+    if not cut_any:
+        return comp, n
+    key = np.where(keep, comp, 0)
+    out = np.zeros(comp.shape, np.int32)
+    m = 0
+    for k in np.unique(key[key > 0]):
+        nk, lk = cv2.connectedComponents((key == k).astype(np.uint8), connectivity=8)
+        for j in range(1, nk):
+            m += 1
+            out[lk == j] = m
+    order = {}
+    flat = out.ravel()
+    for v in flat[flat > 0]:
+        if v not in order:
+            order[v] = len(order) + 1
+    lut = np.zeros(m + 1, np.int32)
+    for v, r in order.items():
+        lut[v] = r
+    return lut[out], m
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
@@ -913,45 +1017,14 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     comp, n = components(kept, disp, p.cc_max_step_px, float(p.cc_max_rel_step), float(p.cc_min_step_px))
     comp, n = split_bimodal(comp, n, disp, int(p.split_min_px), float(p.split_min_rel), float(p.split_max_valley),
                             int(p.split_rounds))
-    roots = merge_fragments(comp, disp, n, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
-                            float(getattr(p, "merge_group_max_rel", 0.0)), bool(getattr(p, "merge_attach", False)),
-                            int(getattr(p, "merge_gap_vertical_px", 0)), int(getattr(p, "merge_bridge_max_px", 0)),
-                            float(getattr(p, "merge_bridge_max_overlap", 1.0)))
-    roots = merge_edges(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_edge_rel_disparity),
-                        int(p.merge_edge_columns))
-    roots = merge_occluded(comp, disp, n, roots, int(p.merge_gap_px), float(p.merge_max_rel_disparity),
-                           int(p.merge_occluded_max_gap_px), int(p.min_area_px))
-    roots = resolve_contained(comp, disp, n, roots, float(p.contain_min_inside), float(p.contain_merge_rel_disparity),
-                              int(p.contain_drop_max_px), bool(p.contain_drop_nearer_only), int(p.min_area_px),
-                              str(p.contain_surround))
-    comp = roots[comp] * (comp > 0)
-    obstacles = []
-    comp_ids = []
-    for c in range(1, n + 1):
-        ys, xs = np.nonzero(comp == c)
-        if len(xs) < p.min_area_px:
-            continue
-        d = max(float(np.median(disp[ys, xs])), 1.0 / 16)
-        z = calib["focal_px"] * calib["baseline_m"] / d
-        if p.max_distance_m > 0 and z > p.max_distance_m:
-            continue  # range, docs/detection.md "(e)"
-        if (ys.max() - ys.min() + 1) * z / calib["focal_px"] < p.min_height_m:
-            continue
-        if p.min_area_m2 > 0 and len(xs) * (z / calib["focal_px"]) ** 2 < p.min_area_m2:
-            continue  # physical area (pixels * (Z/f)^2), docs/detection.md "(e)"
-        x0, x1 = int(xs.min()), int(xs.max())
-        cls = "near" if z < p.near_m else "far" if z >= p.far_m else "mid"
-        obstacles.append(Obstacle(0, (x0, int(ys.min()), x1, int(ys.max())), len(xs), d, z,
-                                  (0.5 * (x0 + x1) - calib["cx"]) * z / calib["focal_px"], cls))
-        comp_ids.append(c)
-    order = sorted(range(len(obstacles)), key=lambda i: -obstacles[i].disparity_px)
-    ol = np.zeros((h, w), np.int32)
-    out = []
-    for rank, i in enumerate(order):
-        o = obstacles[i]
-        o.id = rank
-        ol[comp == comp_ids[i]] = rank + 1
-        out.append(o)
+    out, ol = measure_obstacles(comp, n, disp, calib, p)
+    if int(getattr(p, "neck_min_width_px", 0)) > 0:  # docs/detection.md "(e) Necks" (session 30)
+        cut, nn = split_necks(ol, len(out), int(p.neck_min_width_px), float(p.neck_max_share), int(p.neck_min_px),
+                              float(getattr(p, "neck_foot_share", 0.0)))
+        if not np.array_equal(cut, ol):
+            out, ol = measure_obstacles(cut, nn, disp, calib, DetectParams({**p.values, "merge_gap_px": 0,
+                                                                            "merge_edge_rel_disparity": 0.0,
+                                                                            "contain_min_inside": 0.0}))
     if found:
         out = drop_below_road(out, ol, a, b, horizon, p)  # docs/detection.md "(e) Below the road"
     out = drop_seen_through(out, ol, p)  # docs/detection.md "(e) Seen through"
