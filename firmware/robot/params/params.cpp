@@ -22,6 +22,7 @@ RobotParams robot_params_from(const ConfigValues& v) {
   p.goal_tolerance_m = v.num("robot.goal_tolerance_m");
   p.arrive_margin_m = v.num("robot.arrive_margin_m");
   p.stop_distance_m = v.num("robot.stop_distance_m");
+  p.evade_reverse_mps = v.num("robot.evade_reverse_mps");
   p.stop_allows_turning = v.flag("robot.stop_allows_turning");
   p.odometry_accel_model = v.flag("robot.odometry_accel_model");
   return p;

@@ -354,6 +354,27 @@ bool Planner::evade_instead_of_standing(const Pose2D& pose, const std::vector<Ci
   return stand_moving < pp_.collision_margin_m && stand_moving < now_moving - 0.02 && escape_gap > stand_gap + 0.03;
 }
 
+// Reverse escape ([robot] evade_reverse_mps > 0, session 30): the arcs backwards at the reverse speed
+// and half of it (as far as the acceleration limit allows within one control period), over the
+// window's yaw rates; the one with the largest worst-case gap replaces `escape` when it beats it.
+// The cameras look forward, so the arcs behind are checked against what the map and the tracks hold
+// (the trail the robot came along, static cells seen before, tracked movers).
+void Planner::reverse_escape(const Pose2D& pose, const BodyTwist& current, const DynamicWindow& dw,
+                             const std::vector<CircleObstacle>& near, double& escape_gap, BodyTwist& escape) const {
+  if (!(rp_.evade_reverse_mps > 0)) return;
+  const double vlow = std::max(-rp_.evade_reverse_mps, current.v - rp_.max_accel_mps2 * pp_.control_period_s);
+  if (!(vlow < -1e-3)) return;
+  for (const double v : {vlow, 0.5 * vlow})
+    for (int iw = 0; iw < dw.nw; ++iw) {
+      const double w = dw.wmin + (dw.wmax - dw.wmin) * iw / (dw.nw - 1);
+      const double g = worst_gap(pose, v, w, near, pp_, rp_);
+      if (g > escape_gap) {
+        escape_gap = g;
+        escape = {v, w};
+      }
+    }
+}
+
 PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal,
                          const std::vector<CircleObstacle>& obstacles, const PlanContext& ctx) const {
   PlanOutput out;
@@ -389,6 +410,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
             escape = tw;
           }
         }
+      reverse_escape(pose, current, dw, near, escape_gap, escape);
       if (evade_instead_of_standing(pose, near, escape_gap)) {
         out.status = PlanStatus::kMoving;
         out.evading = true;
@@ -472,7 +494,9 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
     // standing robot (a moving obstacle: a static one never reaches a robot that stands; the
     // obstacles are grown by their uncertainty, so the robot may already be "inside" one): then
     // take the arc that keeps the largest worst-case gap over the horizon, if it beats standing
-    // (every frame re-plans, and the dynamic window widens as the robot speeds up).
+    // (every frame re-plans, and the dynamic window widens as the robot speeds up). With
+    // evade_reverse_mps the arcs backwards are candidates too.
+    reverse_escape(pose, current, dw, near, escape_gap, escape);
     if (evade_instead_of_standing(pose, near, escape_gap)) {
       out.status = PlanStatus::kMoving;
       out.evading = true;
@@ -569,7 +593,7 @@ double shortest_path_length(const std::vector<CircleObstacle>& obstacles, Vec2 s
 WheelCommand DiffDriveMixer::mix(const BodyTwist& want, double dt) {
   BodyTwist t = want;
   if (!std::isfinite(t.v) || !std::isfinite(t.omega)) t = {0.0, 0.0};
-  t.v = std::clamp(t.v, 0.0, rp_.max_speed_mps);
+  t.v = std::clamp(t.v, -rp_.evade_reverse_mps, rp_.max_speed_mps);
   t.omega = std::clamp(t.omega, -rp_.max_yaw_rate_radps, rp_.max_yaw_rate_radps);
   const double dv = rp_.max_accel_mps2 * dt, dw = rp_.max_yaw_accel_radps2 * dt;
   t.v = std::clamp(t.v, last_.v - dv, last_.v + dv);

@@ -358,6 +358,44 @@ TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
   EXPECT_FALSE(calm.evading);
 }
 
+// A mover walking head-on at the robot, which stands between two walls of posts (a corridor 0.5 m
+// wide): no forward arc gets out of its way. With [robot] evade_reverse_mps the planner backs away
+// down the corridor (the arc whose worst-case gap is largest), and the mixer passes the reverse speed;
+// without it the robot can only take the best forward arc, which the mover still meets sooner.
+TEST(Planner, BacksAwayFromAMoverComingHeadOnInACorridor) {
+  RobotParams rp = robot();
+  const PlannerParams pp = planner();
+  std::vector<CircleObstacle> obs;
+  for (int i = -8; i <= 8; ++i) {
+    obs.push_back({{0.1 * i, 0.35}, 0.07, {}});
+    obs.push_back({{0.1 * i, -0.35}, 0.07, {}});
+  }
+  obs.push_back({{0.75, 0.0}, 0.15, {-0.3, 0.0}});
+  const Pose2D pose{0.0, 0.0, 0.0};
+  const Vec2 goal{3.0, 0.0};
+  const PlanOutput fwd = Planner(pp, rp).plan(pose, {}, goal, obs);
+  EXPECT_GE(fwd.cmd.v, 0.0);
+  rp.evade_reverse_mps = 0.2;
+  const PlanOutput back = Planner(pp, rp).plan(pose, {}, goal, obs);
+  ASSERT_TRUE(back.evading);
+  EXPECT_LT(back.cmd.v, -0.05);
+  auto first_contact = [&](BodyTwist tw) {
+    for (double t = 0.0; t <= pp.horizon_s; t += 0.01) {
+      const Pose2D p = integrate_pose(pose, tw, t);
+      for (const CircleObstacle& o : obs)
+        if (norm(o.c + t * o.vel - p.pos()) < o.r + rp.radius_m) return t;
+    }
+    return pp.horizon_s + 1.0;
+  };
+  EXPECT_GT(first_contact(back.cmd), first_contact(fwd.cmd) + 0.2);
+  DiffDriveMixer mx(rp);
+  EXPECT_LT(mx.mix(back.cmd, pp.control_period_s).twist.v, -0.05);
+  EXPECT_GE(mx.mix({-1.0, 0.0}, 10.0).twist.v, -0.2 - 1e-12);  // at most the reverse speed
+  // The same mover standing still: no reason to move backwards.
+  obs.back().vel = {0.0, 0.0};
+  EXPECT_GE(Planner(pp, rp).plan(pose, {}, goal, obs).cmd.v, 0.0);
+}
+
 // No route to the goal (enclosed by a ring) and a cylinder crossing towards the standing robot:
 // with evade_when_blocked the planner dodges it as it does when every arc is unsafe (seed-12 suite,
 // scenario 37: a robot standing "blocked" was walked into); without, it brakes. Without the mover,

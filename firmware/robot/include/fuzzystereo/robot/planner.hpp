@@ -73,6 +73,8 @@ class Planner {
   std::vector<CircleObstacle> reachable_obstacles(const std::vector<CircleObstacle>& obstacles, Vec2 pos) const;
   DynamicWindow dynamic_window(const BodyTwist& current, double dist_goal) const;
   bool evade_instead_of_standing(const Pose2D& pose, const std::vector<CircleObstacle>& near, double escape_gap) const;
+  void reverse_escape(const Pose2D& pose, const BodyTwist& current, const DynamicWindow& dw,
+                      const std::vector<CircleObstacle>& near, double& escape_gap, BodyTwist& escape) const;
 
   PlannerParams pp_;
   RobotParams rp_;
@@ -137,7 +139,7 @@ struct WheelCommand {
 class DiffDriveMixer {
  public:
   explicit DiffDriveMixer(const RobotParams& rp) : rp_(rp) {}
-  // Limits v to [0, max_speed] (no reversing: the cameras look forward), omega to
+  // Limits v to [-evade_reverse_mps, max_speed] (the planner reverses only to evade), omega to
   // +-max_yaw_rate, their changes to the acceleration limits over dt, then scales both wheels
   // down together (keeping the curvature) when one exceeds max_wheel_speed_mps.
   WheelCommand mix(const BodyTwist& want, double dt);
