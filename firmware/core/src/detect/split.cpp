@@ -10,6 +10,10 @@
 // component's pixels (a slanted surface has a flat histogram: its valley holds ~25 %). The pixels
 // are then relabelled: 8-neighbours join when they had the same label and fall on the same side.
 // Repeated `rounds` times (a component spanning three depths splits twice).
+//
+// Necks (session 30, docs/detection.md "(e) Necks"): an obstacle whose box has a run of thin columns
+// between two full parts (two posts joined through a strip of road at their feet that the matcher
+// gave their disparity) is cut there; split_necks works on the column pixel counts of each label.
 #include <algorithm>
 #include <cstdint>
 #include <vector>
