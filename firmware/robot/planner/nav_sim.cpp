@@ -206,7 +206,7 @@ NavScenario make_nav_scenario(std::uint64_t seed, bool blocked, const RobotParam
       const double r = uni(rng, 0.12, 0.3);
       const double t_cross = uni(rng, 2.0, 10.0);  // reaches the line at this time
       CircleObstacle m{cross - (speed * t_cross) * mdir, r, speed * mdir};
-      // never through the start or goal areas (the robot stands there and cannot reverse)
+      // never through the start or goal areas (the robot stands there)
       if (line_dist(m.c, mdir, s) < r + rp.radius_m + 0.8 || line_dist(m.c, mdir, sc.goal) < r + rp.radius_m + 0.8)
         continue;
       obs.push_back(m);

@@ -323,7 +323,11 @@ TEST(Mixer, LimitsSpeedAccelerationAndKeepsCurvature) {
   const double curvature = w.twist.omega / w.twist.v;
   EXPECT_LE(std::max(std::abs(w.left), std::abs(w.right)), 1.0 + 1e-12);
   EXPECT_NEAR(curvature, 2.0 / 0.5, 0.3);  // curvature kept (omega clamped to 120 deg/s first)
-  EXPECT_EQ(mx.mix({-1.0, 0.0}, 10.0).twist.v, 0.0);  // never reverses
+  EXPECT_NEAR(mx.mix({-1.0, 0.0}, 10.0).twist.v, -rp.evade_reverse_mps, 1e-12);  // reverses at most this fast
+  RobotParams fwd_only = rp;
+  fwd_only.evade_reverse_mps = 0.0;
+  DiffDriveMixer mf(fwd_only);
+  EXPECT_EQ(mf.mix({-1.0, 0.0}, 10.0).twist.v, 0.0);  // never reverses
   const WheelCommand nan = mx.mix({NAN, 0.0}, 10.0);
   EXPECT_EQ(nan.left, 0.0);
   EXPECT_EQ(nan.right, 0.0);
@@ -364,6 +368,8 @@ TEST(Planner, EvadesAnObstacleComingAtTheStandingRobot) {
 // without it the robot can only take the best forward arc, which the mover still meets sooner.
 TEST(Planner, BacksAwayFromAMoverComingHeadOnInACorridor) {
   RobotParams rp = robot();
+  ASSERT_EQ(rp.evade_reverse_mps, 0.2);  // the default since session 30
+  rp.evade_reverse_mps = 0.0;
   const PlannerParams pp = planner();
   std::vector<CircleObstacle> obs;
   for (int i = -8; i <= 8; ++i) {

@@ -26,7 +26,7 @@ struct RobotParams {
   double goal_tolerance_m = 0.15;     // goal reached when the centre is this close [m]
   double arrive_margin_m = 0.03;      // the planner declares arrival this far inside goal_tolerance_m [m]
   double stop_distance_m = 0.05;      // failsafe: free gap in front below which forward motion stops [m]
-  double evade_reverse_mps = 0.0;     // reverse speed allowed only to evade a mover coming at the robot
+  double evade_reverse_mps = 0.2;     // reverse speed allowed only to evade a mover coming at the robot
                                       // when no forward arc is safe (0 = never reverses) [m/s]
   bool stop_allows_turning = true;    // failsafe stop still lets the robot turn on the spot
   bool odometry_accel_model = true;   // commanded odometry (no wheel encoders) integrates the wheels of
