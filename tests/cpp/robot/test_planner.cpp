@@ -298,7 +298,9 @@ TEST(Planner, FanCirclesLeaveAtTheTracksSpeedInEveryDirection) {
     EXPECT_NEAR(norm(out[k].vel), 0.3, 1e-12);
     sx += out[k].vel.x;
     sy += out[k].vel.y;
-    if (k > 1) EXPECT_NEAR(out[k].vel.x * out[k - 1].vel.x + out[k].vel.y * out[k - 1].vel.y, 0.09 * 0.5, 1e-12);  // 60 deg apart
+    if (k > 1) {  // 60 deg apart
+      EXPECT_NEAR(out[k].vel.x * out[k - 1].vel.x + out[k].vel.y * out[k - 1].vel.y, 0.09 * 0.5, 1e-12);
+    }
   }
   EXPECT_NEAR(sx, 0.0, 1e-12);
   EXPECT_NEAR(sy, 0.0, 1e-12);
