@@ -545,6 +545,27 @@ def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: fl
     return float(v[k])
 
 
+def relabel_keys(key: np.ndarray) -> tuple[np.ndarray, int]:
+    """8-connected components of equal non-zero keys, numbered 1..m in raster order of their first pixel
+    (as the firmware's relabel_keys)."""
+    out = np.zeros(key.shape, np.int32)
+    m = 0
+    for k in np.unique(key[key > 0]):
+        nk, lk = cv2.connectedComponents((key == k).astype(np.uint8), connectivity=8)
+        for j in range(1, nk):
+            m += 1
+            out[lk == j] = m
+    order = {}
+    flat = out.ravel()
+    for v in flat[flat > 0]:
+        if v not in order:
+            order[v] = len(order) + 1
+    lut = np.zeros(m + 1, np.int32)
+    for v, r in order.items():
+        lut[v] = r
+    return lut[out], m
+
+
 def split_bimodal(comp: np.ndarray, n: int, disp: np.ndarray, min_px: int, min_rel: float, max_valley: float,
                   rounds: int) -> tuple[np.ndarray, int]:
     """Components with two disparity modes are cut at the threshold; pixels relabelled by 8-connected
@@ -562,24 +583,7 @@ def split_bimodal(comp: np.ndarray, n: int, disp: np.ndarray, min_px: int, min_r
                 side[sel & (disp >= t - 1e-9)] = 1
         if not any_split:
             break
-        key = np.where(comp > 0, 2 * comp.astype(np.int64) + side, 0)
-        out = np.zeros(comp.shape, np.int32)
-        m = 0
-        for k in np.unique(key[key > 0]):
-            nk, lk = cv2.connectedComponents((key == k).astype(np.uint8), connectivity=8)
-            for j in range(1, nk):
-                m += 1
-                out[lk == j] = m
-        # renumber in raster order of first pixel (as the firmware)
-        order = {}
-        flat = out.ravel()
-        for v in flat[flat > 0]:
-            if v not in order:
-                order[v] = len(order) + 1
-        lut = np.zeros(m + 1, np.int32)
-        for v, r in order.items():
-            lut[v] = r
-        comp, n = lut[out], m
+        comp, n = relabel_keys(np.where(comp > 0, 2 * comp.astype(np.int64) + side, 0))
     return comp, n
 
 
@@ -964,23 +968,7 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
             i = j
     if not cut_any:
         return comp, n
-    key = np.where(keep, comp, 0)
-    out = np.zeros(comp.shape, np.int32)
-    m = 0
-    for k in np.unique(key[key > 0]):
-        nk, lk = cv2.connectedComponents((key == k).astype(np.uint8), connectivity=8)
-        for j in range(1, nk):
-            m += 1
-            out[lk == j] = m
-    order = {}
-    flat = out.ravel()
-    for v in flat[flat > 0]:
-        if v not in order:
-            order[v] = len(order) + 1
-    lut = np.zeros(m + 1, np.int32)
-    for v, r in order.items():
-        lut[v] = r
-    return lut[out], m
+    return relabel_keys(np.where(keep, comp, 0))
 
 
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
