@@ -366,7 +366,7 @@ void Planner::reverse_escape(const Pose2D& pose, const BodyTwist& current, const
   if (!(vlow < -1e-3)) return;
   for (const double v : {vlow, 0.5 * vlow})
     for (int iw = 0; iw < dw.nw; ++iw) {
-      const double w = dw.wmin + (dw.wmax - dw.wmin) * iw / (dw.nw - 1);
+      const double w = dw.at(0, iw).omega;
       const double g = worst_gap(pose, v, w, near, pp_, rp_);
       if (g > escape_gap) {
         escape_gap = g;

@@ -303,8 +303,9 @@ ImageI32 split_bimodal_components(const ImageI32& components, int count, const I
 // its box; a run of >= min_width consecutive columns each holding <= max_share of the component's
 // 75th-percentile column count, with >= min_px pixels and a column above that share on each side, is
 // a neck (two obstacles joined through a thin strip, e.g. the road at their feet that the matcher gave
-// their disparity). The neck's pixels are dropped and the rest relabelled (8-connectivity); labels
-// renumbered in raster order of first appearance. min_width <= 0: unchanged.
+// their disparity). The neck's pixels are dropped; each part of a cut label between necks becomes one
+// label (its pixels need not be connected), other labels are kept whole; labels renumbered in raster
+// order of first appearance. min_width <= 0 or no neck: unchanged (and *out_count = count).
 // foot_share > 0: only thin runs whose every column's topmost pixel lies in the lowest foot_share of the
 // component's box rows (a strip at the feet).
 ImageI32 split_necks(const ImageI32& components, int count, int min_width, double max_share, int min_px,

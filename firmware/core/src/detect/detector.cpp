@@ -122,7 +122,7 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
     int nn = 0;
     const ImageI32 cut = detect::split_necks(r.obstacle_labels, int(r.obstacles.size()), p.neck_min_width_px,
                                              p.neck_max_share, p.neck_min_px, p.neck_foot_share, &nn);
-    if (cut.data != r.obstacle_labels.data) {
+    if (nn != int(r.obstacles.size())) {  // a cut leaves at least one label more
       DetectParams pm = p;
       // Merging off (the pieces were one group and stay apart), except across a nearer occluder:
       // a farther obstacle seen on both sides of a thin nearer one is one obstacle (merge_occluded).

@@ -234,16 +234,37 @@ ImageI32 split_necks(const ImageI32& components, int count, int min_width, doubl
     if (out_count) *out_count = count;
     return components;
   }
-  ImageI32 keys(w, h, 0);
-  for (int y = 0; y < h; ++y) {
-    const std::int32_t* l = components.row(y);
-    for (int x = 0; x < w; ++x) {
-      const int c = l[x];
-      if (c && !cut[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])]) keys.at(x, y) = c;
+  // New labels: a cut label's columns between cuts form one piece each (its fragments keep together,
+  // connected or not), every other label is kept whole; cut columns drop out. Renumbered in raster
+  // order of first appearance.
+  std::vector<std::int32_t> piece(cols.size(), 0);  // key per (label, column): 1 + column-run start
+  for (int c = 1; c <= count; ++c) {
+    const std::size_t o = off[std::size_t(c)], nc = off[std::size_t(c) + 1] - o;
+    std::int32_t key = std::int32_t(o) + 1;
+    for (std::size_t i = 0; i < nc; ++i) {
+      if (cut[o + i]) {
+        key = std::int32_t(o + i) + 2;  // the next piece starts after this cut column
+        continue;
+      }
+      piece[o + i] = key;
     }
   }
+  std::vector<int> renum(cols.size() + 2, 0);
   int m = 0;
-  ImageI32 out = relabel_keys(keys, &m);
+  ImageI32 out(w, h, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = components.row(y);
+    std::int32_t* d = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int c = l[x];
+      if (c == 0) continue;
+      const std::int32_t k = piece[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])];
+      if (k == 0) continue;
+      int& r = renum[std::size_t(k)];
+      if (r == 0) r = ++m;
+      d[x] = r;
+    }
+  }
   if (out_count) *out_count = m;
   return out;
 }

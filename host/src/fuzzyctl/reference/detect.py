@@ -934,11 +934,12 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
     """Per label, the pixel count of each column of its box; a run of >= min_width columns each holding
     <= max_share of the label's 75th-percentile (lower) column count, with >= min_px pixels and a wider
     column on each side, is dropped (with foot_share > 0 only when every column's topmost pixel lies in the
-    lowest foot_share of the box rows); the rest relabelled by 8-connected components of equal labels, in
-    raster order of first appearance (docs/detection.md "(e) Necks")."""
+    lowest foot_share of the box rows). Each part of a cut label between the runs becomes one label (not
+    necessarily connected), other labels stay whole; renumbered in raster order of first appearance
+    (docs/detection.md "(e) Necks")."""
     if min_width <= 0 or n <= 0:
         return comp, n
-    keep = comp > 0
+    key = comp.astype(np.int64) * (comp.shape[1] + 2)  # (label, piece) keys; piece 0 for an uncut label
     cut_any = False
     for c in range(1, n + 1):
         ys, xs = np.nonzero(comp == c)
@@ -953,6 +954,7 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
         np.minimum.at(top, xs - x0, ys)
         thin = max_share * float(np.sort(cols)[(3 * (nc - 1)) // 4])
         prefix = np.concatenate([[0], np.cumsum(cols)])
+        piece = np.zeros(nc, np.int64)  # piece index per column, -1 = cut
         i = 0
         while i < nc:
             if cols[i] > thin:
@@ -963,12 +965,25 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
                 j += 1
             foot = foot_share <= 0 or bool(np.all(top[i:j] >= y1 - foot_share * (y1 - y0 + 1)))
             if j - i >= min_width and i > 0 and j < nc and prefix[i] >= min_px and prefix[nc] - prefix[j] >= min_px and foot:
-                keep[:, x0 + i:x0 + j] &= comp[:, x0 + i:x0 + j] != c
+                piece[i:j] = -1
+                piece[j:] += 1
                 cut_any = True
             i = j
+        if (piece != 0).any():
+            sel = comp == c
+            p = piece[np.clip(np.nonzero(sel)[1] - x0, 0, nc - 1)]
+            key[sel] = np.where(p < 0, 0, key[sel] + p + 1)
     if not cut_any:
         return comp, n
-    return relabel_keys(np.where(keep, comp, 0))
+    order = {}
+    flat = key.ravel()
+    for v in flat[flat > 0]:
+        if v not in order:
+            order[v] = len(order) + 1
+    out = np.zeros(comp.shape, np.int32)
+    for v, r in order.items():
+        out[key == v] = r
+    return out, len(order)
 
 
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
