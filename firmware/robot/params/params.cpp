@@ -32,6 +32,9 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   TrackerParams p;
   p.pos_sigma_m = v.num("tracker.pos_sigma_m");
   p.accel_sigma_mps2 = v.num("tracker.accel_sigma_mps2");
+  p.accel_sigma_steady_mps2 = v.num("tracker.accel_sigma_steady_mps2");
+  p.maneuver_nis = v.num("tracker.maneuver_nis");
+  p.maneuver_fade = v.num("tracker.maneuver_fade");
   p.init_vel_sigma_mps = v.num("tracker.init_vel_sigma_mps");
   p.gate_m = v.num("tracker.gate_m");
   p.gate_sigmas = v.num("tracker.gate_sigmas");

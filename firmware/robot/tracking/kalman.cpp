@@ -36,6 +36,16 @@ void CvKalman::predict(double dt, double accel_sigma) {
   P_ = f * P_ * f.transpose() + Q(dt, accel_sigma);  // eq. (26)
 }
 
+void CvKalman::add_process_noise(double dt, double accel_sigma) {
+  P_ += Q(dt, accel_sigma);
+}
+
+double CvKalman::position_nis(double px, double py, double pos_var) const {
+  const Eigen::Matrix2d S = P_.topLeftCorner<2, 2>() + pos_var * Eigen::Matrix2d::Identity();
+  const Eigen::Vector2d nu(px - x_(0), py - x_(1));
+  return nu.dot(S.ldlt().solve(nu));
+}
+
 void CvKalman::update(const Vec4& z, const Mat4& R) {
   // H = I: eq. (31) K = P (P + R)^-1, eq. (32) x += K (z - x), P -= K P.
   const Mat4 S = P_ + R;

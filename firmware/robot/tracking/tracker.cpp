@@ -38,9 +38,10 @@ void MultiTracker::mark_movers(const std::vector<int>& ids) {
 std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
                                                     const VisibilityFn& visible) {
   // 1. predict every track to t (eq. 26).
+  double dt_pred = 0.0;
   if (have_t_ && t_ns > last_t_ns_) {
-    const double dt = ns_to_s(t_ns - last_t_ns_);
-    for (Track& tr : tracks_) tr.kf.predict(dt, p_.accel_sigma_mps2);
+    dt_pred = ns_to_s(t_ns - last_t_ns_);
+    for (Track& tr : tracks_) tr.kf.predict(dt_pred, q_level(tr));
   }
   if (!have_t_ || t_ns > last_t_ns_) last_t_ns_ = t_ns;
   have_t_ = true;
@@ -112,6 +113,21 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
     const double var = sigma * sigma;
     const double dtm = ns_to_s(t_ns - tr.last_meas_ns);
+    if (switching()) {
+      // Maneuver switch (docs/robot.md "Session 31"): the fading mean of the position NIS, a
+      // chi-square variable with mean 2 while the constant-velocity model and R fit. Above
+      // maneuver_nis the track turns, starts or stops (or its measurements jump between
+      // fragments): it gets the high Q level, raised already for the interval just predicted so
+      // this update follows the measurement; back at the steady level once the mean falls again.
+      const double nis = tr.kf.position_nis(m.p.x, m.p.y, var);
+      tr.nis_mean = p_.maneuver_fade * tr.nis_mean + (1.0 - p_.maneuver_fade) * nis;
+      const bool now = tr.nis_mean > p_.maneuver_nis;
+      if (now && !tr.maneuvering && dt_pred > 0.0) {
+        const double hi = p_.accel_sigma_mps2, lo = p_.accel_sigma_steady_mps2;
+        tr.kf.add_process_noise(dt_pred, std::sqrt(std::max(0.0, hi * hi - lo * lo)));
+      }
+      tr.maneuvering = now;
+    }
     if (p_.velocity_measurement && tr.hits >= 1 && dtm > 1e-6) {
       // z = [p; v], v = finite difference to this track's previous measurement. With independent
       // position noise var_k, var_{k-1}: Var(v) = (var_k + var_{k-1}) / dt^2, Cov(p, v) = var_k / dt.

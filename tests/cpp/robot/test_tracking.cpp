@@ -92,6 +92,96 @@ TrackStats run_cv_trials(const TrackerParams& tp, double sigma, double dt, int f
   return {std::sqrt(se_f / static_cast<double>(np)), std::sqrt(se_r / static_cast<double>(np)), std::sqrt(se_v / static_cast<double>(nv)), verr[verr.size() * 95 / 100], verr.back()};
 }
 
+// A target that walks straight and then turns: speed 0.3-0.8 m/s, heading turned by 60-120 deg (either
+// side) at frame turn_frame; 5 cm noise, 10 Hz. Velocity error RMS over the 10 frames after the turn
+// (how fast the filter follows a manoeuvre) and over the frames from 10 after it on (settled).
+struct TurnStats {
+  double vel_rmse_first10 = 0, vel_rmse_settled = 0;
+};
+TurnStats run_turn_trials(const TrackerParams& tp, int trials, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double sigma = 0.05, dt = 0.1;
+  const int turn_frame = 30, frames = 60;
+  double se1 = 0, se2 = 0;
+  long n1 = 0, n2 = 0;
+  for (int k = 0; k < trials; ++k) {
+    MultiTracker mt(tp);
+    const double speed = 0.3 + 0.5 * u(rng), h0 = 2.0 * M_PI * u(rng);
+    const double turn = (u(rng) < 0.5 ? -1.0 : 1.0) * (M_PI / 3.0 + (M_PI / 3.0) * u(rng));
+    Vec2 p{3.0, 0.0};
+    for (int f = 0; f < frames; ++f) {
+      const double h = f <= turn_frame ? h0 : h0 + turn;
+      const Vec2 v{speed * std::cos(h), speed * std::sin(h)};
+      if (f > 0) p = p + dt * v;
+      const Vec2 z{p.x + sigma * n01(rng), p.y + sigma * n01(rng)};
+      mt.step(s_to_ns(f * dt), {{z, 0.2, 1, sigma}}, [](Vec2) { return true; });
+      EXPECT_EQ(mt.tracks().size(), 1u);
+      const double e = norm(mt.tracks()[0].vel() - v);
+      if (f > turn_frame && f <= turn_frame + 10) { se1 += e * e; ++n1; }
+      if (f > turn_frame + 10) { se2 += e * e; ++n2; }
+    }
+  }
+  return {std::sqrt(se1 / static_cast<double>(n1)), std::sqrt(se2 / static_cast<double>(n2))};
+}
+
+// The sweep behind docs/robot.md "Session 31" (run with --gtest_also_run_disabled_tests).
+TEST(Tracker, DISABLED_ManeuverSwitchSweep) {
+  for (double steady : {0.0, 0.15, 0.2, 0.25})
+    for (double nis : {3.0, 4.0, 6.0})
+      for (double fade : {0.5, 0.7}) {
+        if (steady == 0.0 && (nis != 4.0 || fade != 0.7)) continue;
+        TrackerParams tp;
+        tp.accel_sigma_steady_mps2 = steady;
+        tp.maneuver_nis = nis;
+        tp.maneuver_fade = fade;
+        const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 100, 42);
+        const TurnStats t = run_turn_trials(tp, 100, 43);
+        std::cout << "steady " << steady << " nis " << nis << " fade " << fade << ": pos " << s.filt_pos_rmse
+                  << " vel rms " << s.vel_rmse_after10 << " p95 " << s.vel_p95_after10 << " | turn first10 "
+                  << t.vel_rmse_first10 << " settled " << t.vel_rmse_settled << "\n";
+      }
+  for (double a : {0.2, 0.3}) {
+    TrackerParams tp;
+    tp.accel_sigma_mps2 = a;
+    const TrackStats s = run_cv_trials(tp, 0.05, 0.1, 60, 100, 42);
+    const TurnStats t = run_turn_trials(tp, 100, 43);
+    std::cout << "fixed " << a << ": pos " << s.filt_pos_rmse << " vel rms " << s.vel_rmse_after10 << " p95 "
+              << s.vel_p95_after10 << " | turn first10 " << t.vel_rmse_first10 << " settled " << t.vel_rmse_settled << "\n";
+  }
+}
+
+TEST(Tracker, ManeuverSwitchMeetsTheVelocityTargetAndFollowsTurns) {
+  // Q at 0.2 m/s^2 while the innovations look like noise, 0.5 (the fixed default) while the faded
+  // mean NIS exceeds 4: the constant-velocity targets get the steady filter's velocity, a turning
+  // target a faster reaction than the steady filter alone.
+  TrackerParams sw;
+  sw.accel_sigma_steady_mps2 = 0.2;
+  TrackerParams steady, agile;
+  steady.accel_sigma_mps2 = 0.2;
+  const TrackStats s = run_cv_trials(sw, 0.05, 0.1, 60, 100, 42);
+  const TurnStats t = run_turn_trials(sw, 100, 43), ts = run_turn_trials(steady, 100, 43), ta = run_turn_trials(agile, 100, 43);
+  std::cout << "[ tracking, maneuver switch ] position RMSE " << s.filt_pos_rmse << " m vs raw " << s.raw_pos_rmse
+            << " m; velocity error after 10 frames: RMS " << s.vel_rmse_after10 << " m/s, p95 " << s.vel_p95_after10
+            << " m/s, max " << s.vel_max_after10 << " m/s; after a turn (first 10 frames / settled): switch "
+            << t.vel_rmse_first10 << " / " << t.vel_rmse_settled << ", fixed 0.2 " << ts.vel_rmse_first10 << " / "
+            << ts.vel_rmse_settled << ", fixed 0.5 " << ta.vel_rmse_first10 << " / " << ta.vel_rmse_settled << " m/s\n";
+  EXPECT_LT(s.filt_pos_rmse, 0.8 * s.raw_pos_rmse);
+  EXPECT_LT(s.vel_p95_after10, 0.1);  // the "within 0.1 m/s after 10 frames", 95 % of the frames
+  EXPECT_LT(t.vel_rmse_first10, 0.95 * ts.vel_rmse_first10);  // follows a turn faster than Q = 0.2 alone
+  EXPECT_LT(t.vel_rmse_settled, ta.vel_rmse_settled);          // and settles steadier than Q = 0.5 alone
+}
+
+TEST(Tracker, ManeuverSwitchOffKeepsTheFixedQ) {
+  // accel_sigma_steady_mps2 = 0: bit-identical to the fixed-Q filter (the NIS is not even computed).
+  TrackerParams a, b;
+  b.maneuver_nis = 0.5;  // would switch on every frame if the switch were on
+  const TrackStats sa = run_cv_trials(a, 0.05, 0.1, 30, 10, 5), sb = run_cv_trials(b, 0.05, 0.1, 30, 10, 5);
+  EXPECT_EQ(sa.vel_rmse_after10, sb.vel_rmse_after10);
+  EXPECT_EQ(sa.filt_pos_rmse, sb.filt_pos_rmse);
+}
+
 // A circle of radius r at range rho and bearing b: its silhouette rays are at b +- asin(r / rho)
 // and its front (nearest point) at rho - r. The model recovers centre and radius; the camera-axis
 // model used before session 12 (centre at the front's forward distance + half the width measured

@@ -31,6 +31,14 @@ class CvKalman {
   // finite-difference velocity exists, and when velocity measurements are disabled).
   void update_position(double px, double py, double pos_var);
 
+  // P += Q(dt, accel_sigma): the process noise of a prediction over dt added afterwards (the
+  // maneuver switch raises a track's Q level for the interval it was detected in; Q is linear in
+  // accel_sigma^2, so Q(dt, hi) = Q(dt, lo) + Q(dt, sqrt(hi^2 - lo^2))).
+  void add_process_noise(double dt, double accel_sigma);
+  // Normalised innovation squared of a position measurement against the current (predicted) state:
+  // nu^T S^-1 nu with nu = z - [px, py], S = P_pp + pos_var I (chi-square, 2 dof, when the model fits).
+  double position_nis(double px, double py, double pos_var) const;
+
   static Mat4 F(double dt);                        // eq. (28)
   static Mat4 Q(double dt, double accel_sigma);
 

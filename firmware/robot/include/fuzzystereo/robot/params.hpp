@@ -37,7 +37,14 @@ struct RobotParams {
 // [tracker] — Kalman filter eq. (26)-(32) and track management.
 struct TrackerParams {
   double pos_sigma_m = 0.10;        // std of a position measurement per axis (R) [m]
-  double accel_sigma_mps2 = 0.5;    // white-noise acceleration std (Q) [m/s^2]
+  double accel_sigma_mps2 = 0.5;    // white-noise acceleration std (Q) [m/s^2]; with the maneuver
+                                    // switch below, the level of a manoeuvring track
+  double accel_sigma_steady_mps2 = 0.0;  // Q level of a track whose innovations look like noise
+                                         // (maneuver switch, docs/robot.md "Session 31"); 0 = off:
+                                         // every track always uses accel_sigma_mps2 [m/s^2]
+  double maneuver_nis = 4.0;        // a track manoeuvres while its faded mean position NIS
+                                    // (chi-square, 2 dof, mean 2 when the model fits) exceeds this
+  double maneuver_fade = 0.7;       // weight of the previous mean NIS in the fading average
   double init_vel_sigma_mps = 5.0;  // velocity std of a new track (P0, eq. 30) [m/s]
   double gate_m = 0.5;              // association gate at zero uncertainty [m]
   double gate_sigmas = 3.0;         // gate grows by this many predicted position stds

@@ -63,6 +63,8 @@ struct Track {
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
   bool updated_this_frame = false;
+  double nis_mean = 2.0;        // faded mean of the position NIS (maneuver switch; 2 = the chi-square mean)
+  bool maneuvering = false;     // Q level: accel_sigma_mps2 (true) or accel_sigma_steady_mps2
   bool mover = false;           // the loop's moving test passed at its last planning step (mark_movers)
   // The last kRecentMeas measured positions with their times, oldest first (the loop's moving test
   // over a recent window, [loop] moving_window_s).
@@ -109,6 +111,11 @@ class MultiTracker {
   void mark_movers(const std::vector<int>& ids);
 
  private:
+  // The maneuver switch is on (accel_sigma_steady_mps2 > 0), and a track's Q level.
+  bool switching() const { return p_.accel_sigma_steady_mps2 > 0.0; }
+  double q_level(const Track& tr) const {
+    return switching() && !tr.maneuvering ? p_.accel_sigma_steady_mps2 : p_.accel_sigma_mps2;
+  }
   TrackerParams p_;
   std::vector<Track> tracks_;
   int next_id_ = 1;
