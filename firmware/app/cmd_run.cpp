@@ -51,7 +51,8 @@ void print_result(const LoopResult& r) {
     std::printf("watchdog (sim clock): stop commanded %.0f ms after the last plan, %.0f ms after the stall began (the frame that never came)\n",
                 r.watchdog_stop_after_last_plan_ms, r.watchdog_stop_after_deadline_ms);
   if (r.watchdog_stop_wall_ms >= 0)
-    std::printf("watchdog (wall clock): stop commanded %.1f ms after the last plan\n", r.watchdog_stop_wall_ms);
+    std::printf("watchdog (wall clock): stop commanded %.1f ms after the last plan, %.1f ms after the stall began\n",
+                r.watchdog_stop_wall_ms, r.watchdog_stop_wall_after_stall_ms);
   if (r.perception_stops > 0 || r.perception_fault_frames > 0)
     std::printf("perception failsafe: %d stop(s), %d faulty frame(s)\n", r.perception_stops, r.perception_fault_frames);
   if (!r.record_warning.empty())

@@ -307,6 +307,7 @@ json LoopResult::to_json() const {
     j["watchdog_stop_after_deadline_ms"] = watchdog_stop_after_deadline_ms;
   }
   if (watchdog_stop_wall_ms >= 0) j["watchdog_stop_wall_ms"] = watchdog_stop_wall_ms;
+  if (watchdog_stop_wall_after_stall_ms > -1e9) j["watchdog_stop_wall_after_stall_ms"] = watchdog_stop_wall_after_stall_ms;
   if (perception_stop_after_ms >= 0) j["perception_stop_after_ms"] = perception_stop_after_ms;
   if (!record_warning.empty()) {
     j["record_warning"] = record_warning;
@@ -486,6 +487,7 @@ LoopResult RobotLoop::run() {
   std::unique_ptr<robot::SimWatchdog> sim_wd;
   std::unique_ptr<robot::WallWatchdog> wall_wd;
   std::atomic<double> wall_stop_ms{-1.0};
+  std::atomic<std::int64_t> wall_stop_steady_ns{-1};  // steady_clock time of the wall watchdog's stop
   if (sim_clock) {
     sim_wd = std::make_unique<robot::SimWatchdog>(I.wp.timeout_ns, [&] {
       I.motors->stop();
@@ -499,6 +501,8 @@ LoopResult RobotLoop::run() {
       if (I.sim_motors) I.sim_motors->advance_to(now - t0);
       I.motors->stop();
       wall_stop_ms = wall_ms_since(wall_last_feed);
+      wall_stop_steady_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                std::chrono::steady_clock::now().time_since_epoch()).count();
       wd_stop_ns = now;  // for the commanded odometry's model
     });
   }
@@ -622,8 +626,16 @@ LoopResult RobotLoop::run() {
           res.watchdog_stop_after_deadline_ms = robot::ns_to_s(stop_cmd_ns - deadline) * 1e3;
         }
       } else {
+        // The stall begins now: the loop waited for this frame's time (a healthy pipeline would be
+        // capturing it), as on the simulated clock the frame that never came.
+        const std::int64_t stall_begin = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                             std::chrono::steady_clock::now().time_since_epoch()).count();
+        wall_stop_ms = -1.0;  // a trip before the stall (a slow frame) is not this stall's stop
+        wall_stop_steady_ns = -1;
         std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
         res.watchdog_stop_wall_ms = wall_stop_ms.load();
+        if (wall_stop_steady_ns.load() >= 0)
+          res.watchdog_stop_wall_after_stall_ms = static_cast<double>(wall_stop_steady_ns.load() - stall_begin) * 1e-6;
       }
       if (I.sim_motors) true_pose = I.sim_motors->pose();
       continue;

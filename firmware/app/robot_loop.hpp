@@ -88,6 +88,7 @@ struct LoopResult {
   double watchdog_stop_after_last_plan_ms = -1;  // stall test: stop command after the last plan
   double watchdog_stop_after_deadline_ms = -1;   // ... after the stall began (the frame that was due)
   double watchdog_stop_wall_ms = -1;             // ... wall-clock watchdog thread (real sleep)
+  double watchdog_stop_wall_after_stall_ms = -1e18;  // ... after the stall began (wall clock)
   double fps_wall = 0;      // frames per wall-clock second of processing
   std::vector<std::pair<std::string, StageStat>> stages;
   nlohmann::json to_json() const;

@@ -49,6 +49,22 @@ def test_watchdog_stops_motors_after_a_stall(firmware_bin, common_dir):
     assert re.search(r"watchdog trips [1-9]", p.stdout)
 
 
+def test_watchdog_stops_motors_after_a_stall_on_the_wall_clock(firmware_bin, common_dir):
+    # The same stall paced on the wall clock (--realtime, 5 Hz): the watchdog thread stops the motors
+    # timeout_ms (200) after the last plan. The stall begins when the next frame was due (the loop was
+    # waiting for it), one period after the last frame's capture, so the stop follows the stall by the
+    # last frame's processing time (capture to plan): 30-45 ms on the build machine.
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet", "--realtime",
+            "--stall-frame", "8", "--stall-ms", "500", "--max-frames", "12")
+    assert p.returncode == 0, p.stderr
+    m = re.search(r"watchdog \(wall clock\): stop commanded ([\d.]+) ms after the last plan, (-?[\d.]+) ms after the "
+                  r"stall began", p.stdout)
+    assert m, p.stdout
+    after_plan, after_stall = float(m.group(1)), float(m.group(2))
+    assert 199.0 <= after_plan <= 300.0  # never before the timeout; generous on a shared machine
+    assert 0.0 < after_stall < after_plan  # the stall began after the last plan
+
+
 @pytest.mark.parametrize("mode, side", [("dark", "left"), ("covered", "right")])
 def test_perception_failsafe_stops_a_blind_robot(firmware_bin, common_dir, tmp_path, mode, side):
     # From frame 20 one camera is blind: all black ("dark": no contrast) or a lens under a hand
