@@ -108,7 +108,11 @@ TEST(Slic, MatchesScalarReference) {
   struct Case { int w, h, S, m, it, pct; unsigned seed; bool textured; };
   const Case cases[] = {{37, 23, 5, 10, 3, 25, 1, false}, {101, 67, 8, 20, 4, 25, 2, true},
                         {129, 41, 6, 40, 2, 50, 3, true}, {63, 95, 11, 5, 4, 10, 4, false},
-                        {7, 5, 3, 20, 1, 25, 5, true},    {211, 53, 8, 20, 4, 100, 6, true}};
+                        {7, 5, 3, 20, 1, 25, 5, true},    {211, 53, 8, 20, 4, 100, 6, true},
+                        // > 16 iterations (the iteration tags run out once) and the largest distances
+                        // (S = 48, m = 100: D' just below the tag bits)
+                        {61, 59, 4, 1, 20, 25, 7, false}, {131, 97, 48, 100, 17, 25, 8, true},
+                        {150, 120, 48, 100, 3, 25, 9, false}};
   for (const Case& c : cases) {
     const ImageU8 img = c.textured ? test::texture_image(c.w, c.h, c.seed) : test::random_image(c.w, c.h, c.seed);
     SegmentationParams p;

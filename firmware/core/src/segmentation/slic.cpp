@@ -3,7 +3,11 @@
 //
 // Distance (SLIC, Achanta et al. 2012) scaled by S^2 to stay integer:
 //   D' = dI^2 * S^2 + (dx^2 + dy^2) * m^2      (uint32: dI <= 255, |dx|,|dy| <= S, S <= 48,
-//                                              m <= 100 -> D' <= 1.5e8 + 4.6e7 < 2^32)
+//                                              m <= 100 -> D' <= 1.5e8 + 4.6e7 < 2^28)
+// Iteration tag: the best distance per pixel is kept as tag << 28 | D' (D' < 2^28 by the bound above),
+// the tag one lower each iteration, so every distance of an earlier iteration compares larger than any
+// of this one — what refilling the distances with UINT32_MAX before each iteration did, without the
+// pass over the image (16 iterations per fill).
 // Centres: grid of step S, then moved to the lowest-gradient pixel of their 3x3 neighbourhood.
 // Centre update: integer mean (rounded) of the assigned pixels' position and grey level.
 // Connectivity: pieces smaller than min_segment_pct % of S^2 join the previous neighbouring segment.
@@ -115,7 +119,13 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
   if (centers.empty()) centers.push_back({w / 2, h / 2, img.at(w / 2, h / 2)});
 
   ImageI32 labels(w, h, -1);
-  std::vector<std::uint32_t> dist(std::size_t(w) * std::size_t(h));
+  // Best distance so far per pixel, tagged with its iteration (see the header); all start at the
+  // largest value, which every distance of the first iteration (tag 15) is below.
+  constexpr int kTagShift = 28, kTagMax = 15;
+  static_assert((std::uint64_t(255 * 255) * 48 * 48 + std::uint64_t(2 * 48 * 48) * 100 * 100) < (std::uint64_t(1) << kTagShift),
+                "SLIC distance D' must fit below the iteration tag (region_size <= 48, compactness <= 100)");
+  std::vector<std::uint32_t> dist(std::size_t(w) * std::size_t(h), std::numeric_limits<std::uint32_t>::max());
+  int tag = kTagMax;
   // Row prefix sums of the grey values (int32: <= 255 * w) for the centre update, and the run
   // scratch of detail::for_each_run.
   std::vector<std::int32_t> grey_prefix(std::size_t(h) * std::size_t(w + 1));
@@ -128,21 +138,27 @@ Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
   std::vector<std::uint8_t> flags(std::size_t(w) + 8);
   // The spatial term of D' for every offset (dx, dy) in [-S, S]^2 (see assign_window).
   const int side = 2 * S + 1;
-  std::vector<std::uint32_t> spatial(std::size_t(side) * std::size_t(side));
+  std::vector<std::uint32_t> spatial(std::size_t(side) * std::size_t(side)), tagged(spatial.size());
   for (int dy = -S; dy <= S; ++dy)
     for (int dx = -S; dx <= S; ++dx)
       spatial[std::size_t(dy + S) * std::size_t(side) + std::size_t(dx + S)] =
           static_cast<std::uint32_t>(dx * dx + dy * dy) * static_cast<std::uint32_t>(m2);
   std::vector<std::int64_t> sx(centers.size()), sy(centers.size()), si(centers.size()), cnt(centers.size());
   for (int it = 0; it < p.iterations; ++it) {
-    std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
+    if (tag < 0) {  // tags used up (> 16 iterations): start again from the largest value
+      std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
+      tag = kTagMax;
+    }
+    // The tag rides on the spatial term, so assign_window adds it without knowing.
+    const std::uint32_t tag_bits = static_cast<std::uint32_t>(tag--) << kTagShift;
+    for (std::size_t i = 0; i < spatial.size(); ++i) tagged[i] = spatial[i] + tag_bits;
     for (std::size_t k = 0; k < centers.size(); ++k) {
       const Center& c = centers[k];
       const int x0 = std::max<int>(0, int(c.x) - S), x1 = std::min<int>(w - 1, int(c.x) + S);
       const int y0 = std::max<int>(0, int(c.y) - S), y1 = std::min<int>(h - 1, int(c.y) + S);
       assign_window(img, dist.data(), labels, x0, x1, y0, y1, static_cast<std::int32_t>(c.i),
                     static_cast<std::int32_t>(c.x), static_cast<std::int32_t>(c.y), static_cast<std::uint32_t>(S2),
-                    spatial.data(), S, static_cast<std::int32_t>(k));
+                    tagged.data(), S, static_cast<std::int32_t>(k));
     }
     if (it + 1 == p.iterations) break;  // the labels are final; the last centre update is not needed
     // Update centres (integer rounded means). Unreached pixels (-1) keep no centre. Per row, a run
