@@ -35,6 +35,10 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.accel_sigma_steady_mps2 = v.num("tracker.accel_sigma_steady_mps2");
   p.maneuver_nis = v.num("tracker.maneuver_nis");
   p.maneuver_fade = v.num("tracker.maneuver_fade");
+  if (p.accel_sigma_steady_mps2 > p.accel_sigma_mps2)
+    throw ConfigError(v.source + ": field 'tracker.accel_sigma_steady_mps2' = " + std::to_string(p.accel_sigma_steady_mps2) +
+                      " must be <= 'tracker.accel_sigma_mps2' = " + std::to_string(p.accel_sigma_mps2) +
+                      " (the maneuver switch raises Q from the steady level to accel_sigma_mps2; 0 = off)");
   p.init_vel_sigma_mps = v.num("tracker.init_vel_sigma_mps");
   p.gate_m = v.num("tracker.gate_m");
   p.gate_sigmas = v.num("tracker.gate_sigmas");

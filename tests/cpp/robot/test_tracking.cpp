@@ -574,6 +574,14 @@ TEST(Tracker, ConfigOverridesAndErrors) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("watchdog.timeout_ms"), std::string::npos) << e.what();
   }
+  try {  // the maneuver switch's steady level above the manoeuvring one: one line naming both fields
+    tracker_params_from(parse_config("[tracker]\naccel_sigma_steady_mps2 = 0.8\n", "t.toml").values);
+    FAIL() << "steady Q above the manoeuvring Q accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("tracker.accel_sigma_steady_mps2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("tracker.accel_sigma_mps2"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(tracker_params_from(parse_config("[tracker]\naccel_sigma_steady_mps2 = 0.0\n", "t.toml").values));
 }
 
 }  // namespace
