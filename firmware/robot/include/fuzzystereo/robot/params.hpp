@@ -39,7 +39,7 @@ struct TrackerParams {
   double pos_sigma_m = 0.10;        // std of a position measurement per axis (R) [m]
   double accel_sigma_mps2 = 0.5;    // white-noise acceleration std (Q) [m/s^2]; with the maneuver
                                     // switch below, the level of a manoeuvring track
-  double accel_sigma_steady_mps2 = 0.2;  // Q level of a track whose innovations look like noise
+  double accel_sigma_steady_mps2 = 0.15;  // Q level of a track whose innovations look like noise
                                          // (maneuver switch, docs/robot.md "Session 31"); 0 = off:
                                          // every track always uses accel_sigma_mps2 [m/s^2]
   double maneuver_nis = 4.0;        // a track manoeuvres while its faded mean position NIS
