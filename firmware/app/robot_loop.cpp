@@ -487,7 +487,7 @@ LoopResult RobotLoop::run() {
   std::unique_ptr<robot::SimWatchdog> sim_wd;
   std::unique_ptr<robot::WallWatchdog> wall_wd;
   std::atomic<double> wall_stop_ms{-1.0};
-  std::atomic<std::int64_t> wall_stop_steady_ns{-1};  // steady_clock time of the wall watchdog's stop
+  std::atomic<std::int64_t> wall_stop_ns{-1};  // wclock time of the wall watchdog's stop
   if (sim_clock) {
     sim_wd = std::make_unique<robot::SimWatchdog>(I.wp.timeout_ns, [&] {
       I.motors->stop();
@@ -501,8 +501,7 @@ LoopResult RobotLoop::run() {
       if (I.sim_motors) I.sim_motors->advance_to(now - t0);
       I.motors->stop();
       wall_stop_ms = wall_ms_since(wall_last_feed);
-      wall_stop_steady_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                std::chrono::steady_clock::now().time_since_epoch()).count();
+      wall_stop_ns = now;
       wd_stop_ns = now;  // for the commanded odometry's model
     });
   }
@@ -628,14 +627,12 @@ LoopResult RobotLoop::run() {
       } else {
         // The stall begins now: the loop waited for this frame's time (a healthy pipeline would be
         // capturing it), as on the simulated clock the frame that never came.
-        const std::int64_t stall_begin = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                             std::chrono::steady_clock::now().time_since_epoch()).count();
+        const std::int64_t stall_begin = wclock.now_ns();
         wall_stop_ms = -1.0;  // a trip before the stall (a slow frame) is not this stall's stop
-        wall_stop_steady_ns = -1;
+        wall_stop_ns = -1;
         std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
         res.watchdog_stop_wall_ms = wall_stop_ms.load();
-        if (wall_stop_steady_ns.load() >= 0)
-          res.watchdog_stop_wall_after_stall_ms = static_cast<double>(wall_stop_steady_ns.load() - stall_begin) * 1e-6;
+        if (wall_stop_ns.load() >= 0) res.watchdog_stop_wall_after_stall_ms = robot::ns_to_s(wall_stop_ns.load() - stall_begin) * 1e3;
       }
       if (I.sim_motors) true_pose = I.sim_motors->pose();
       continue;

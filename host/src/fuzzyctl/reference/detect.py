@@ -545,6 +545,18 @@ def bimodal_threshold(v: np.ndarray, min_px: int, min_rel: float, max_valley: fl
     return float(v[k])
 
 
+def renumber_raster(key: np.ndarray) -> tuple[np.ndarray, int]:
+    """Non-zero keys renumbered 1..m in raster order of their first pixel (0 stays 0), as the firmware."""
+    flat = key.ravel()
+    nz = np.flatnonzero(flat)
+    values, first = np.unique(flat[nz], return_index=True)
+    rank = np.empty(len(values), np.int32)
+    rank[np.argsort(first, kind="stable")] = np.arange(1, len(values) + 1, dtype=np.int32)
+    out = np.zeros(flat.shape, np.int32)
+    out[nz] = rank[np.searchsorted(values, flat[nz])]
+    return out.reshape(key.shape), len(values)
+
+
 def relabel_keys(key: np.ndarray) -> tuple[np.ndarray, int]:
     """8-connected components of equal non-zero keys, numbered 1..m in raster order of their first pixel
     (as the firmware's relabel_keys)."""
@@ -555,15 +567,7 @@ def relabel_keys(key: np.ndarray) -> tuple[np.ndarray, int]:
         for j in range(1, nk):
             m += 1
             out[lk == j] = m
-    order = {}
-    flat = out.ravel()
-    for v in flat[flat > 0]:
-        if v not in order:
-            order[v] = len(order) + 1
-    lut = np.zeros(m + 1, np.int32)
-    for v, r in order.items():
-        lut[v] = r
-    return lut[out], m
+    return renumber_raster(out)
 
 
 def split_bimodal(comp: np.ndarray, n: int, disp: np.ndarray, min_px: int, min_rel: float, max_valley: float,
@@ -975,15 +979,7 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
             key[sel] = np.where(p < 0, 0, key[sel] + p + 1)
     if not cut_any:
         return comp, n
-    order = {}
-    flat = key.ravel()
-    for v in flat[flat > 0]:
-        if v not in order:
-            order[v] = len(order) + 1
-    out = np.zeros(comp.shape, np.int32)
-    for v, r in order.items():
-        out[key == v] = r
-    return out, len(order)
+    return renumber_raster(key)
 
 
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
