@@ -246,7 +246,7 @@ void run_run(const RunOptions& o) {
 }
 
 struct SuiteOptions {
-  int count = 100, blocked = -1, jobs = 1;
+  int count = 100, blocked = -1, jobs = 1, snapshot_every = 0;
   std::uint64_t seed = 1;
   std::string config, json_out, record, only;
   double latency_ms = 100;
@@ -254,6 +254,7 @@ struct SuiteOptions {
 
 void run_suite(const SuiteOptions& o) {
   if (o.count < 0) throw UserError("--count must be >= 0");
+  if (o.snapshot_every < 0) throw UserError("--snapshot-every must be >= 0 (0 = no annotated frames)");
   const int n_blocked = o.blocked >= 0 ? o.blocked : std::max(1, o.count / 10);
   // --only: a subset of the same seeded scenarios ("3,17,b0" = solvable 3 and 17, blocked 0).
   std::vector<std::pair<int, bool>> picked;
@@ -307,7 +308,7 @@ void run_suite(const SuiteOptions& o) {
         lo.sim_latency_ms = o.latency_ms;
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;
-          lo.snapshot_every = 0;
+          lo.snapshot_every = o.snapshot_every;
         }
         RobotLoop loop(cfg, lo);
         it.r = loop.run();
@@ -468,6 +469,9 @@ void add_sim_suite_command(CLI::App& sim) {
   c->add_option("--config", o->config, "TOML config");
   c->add_option("--latency-ms", o->latency_ms, "Simulated processing latency")->capture_default_str();
   c->add_option("--record", o->record, "Write each scenario's run record under this directory");
+  c->add_option("--snapshot-every", o->snapshot_every,
+                "With --record: an annotated frame every N frames (0 = none; 1 for tracing one scenario)")
+      ->capture_default_str();
   c->add_option("--json", o->json_out, "Write the summary and every scenario as JSON");
   c->add_option("--only", o->only, "Run only these scenarios of the seed: e.g. 3,17,b0 (b = without a free path)");
   c->callback([o] { run_suite(*o); });

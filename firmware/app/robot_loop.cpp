@@ -176,6 +176,15 @@ GroundPt ground_of(const StereoCalib& calib, double u, double v, double d_px) {
 // Depth std of a stereo point: 0.25 px disparity error, dZ = Z^2 / (f B) * dd.
 double depth_sigma(const StereoCalib& calib, double Z) { return 0.25 * Z * Z / (calib.focal_px * calib.baseline_m); }
 
+// Simulator truth for the record: how far the robot can drive straight ahead before it touches
+// an obstacle (0.02 m steps up to max_m; max_m when nothing is in the way).
+double true_front_m(const sim::World& world, const Pose2D& pose, double t_s, double radius_m, double max_m) {
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  for (double d = 0.0; d <= max_m; d += 0.02)
+    if (world.clearance(sim::Pose2{pose.x + c * d, pose.y + s * d, pose.yaw}, t_s) < radius_m) return d;
+  return max_m;
+}
+
 // The frame's detections as (a) a camera scan for the static map: per image column the surface
 // point of each detected obstacle (median disparity of its pixels in that column) and the forward
 // distance the column sees free, and (b) point measurements for the tracker, one per compact
@@ -294,6 +303,7 @@ json LoopResult::to_json() const {
          {"path_ratio", (shortest_m > 0 && std::isfinite(shortest_m)) ? path_m / shortest_m : 0.0},
          {"min_clearance_m", min_clearance_m},
          {"front_stops", front_stops},
+         {"ground_stops", ground_stops},
          {"look_turns", look_turns},
          {"stuck_frames", stuck_frames},
          {"static_meas", static_meas},
@@ -565,6 +575,7 @@ LoopResult RobotLoop::run() {
   std::vector<robot::ObstacleMeasurement> meas;
   std::vector<std::pair<std::size_t, std::size_t>> meas_hits;  // each measurement's surface points in scan.hits
   double scan_turned_rad = 0;
+  bool ground_unseen = false;  // the ground-seen-ahead stop is engaged ([robot] ground_ahead_min_pct)
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
   // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
@@ -756,6 +767,22 @@ LoopResult RobotLoop::run() {
     s1 = std::chrono::steady_clock::now();
     const ImageI16& det_disp = detection_disparity(mr, det_input);  // [detect] input
     const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
+    // Ground seen ahead ([robot] ground_ahead_min_pct, docs/robot.md "Ground seen ahead"): the share
+    // of the corridor's ground band that the detector explained as road or as an obstacle (the map
+    // and the tracks hold those); the rest is ground the camera does not see — an obstacle nearer
+    // than the matcher's range or without texture. The front stop below acts on it.
+    const robot::ImageBand ground_band =
+        robot::ground_band_ahead(det_disp.width, det_disp.height, I.calib.focal_px, I.calib.cx, I.calib.cy,
+                                 I.calib.height_m, I.calib.pitch_rad, I.rp.radius_m, I.rp.ground_ahead_band_m);
+    const bool have_masks = det.road_mask.width == det_disp.width && det.road_mask.height == det_disp.height &&
+                            det.obstacle_labels.width == det_disp.width && det.obstacle_labels.height == det_disp.height;
+    const double ground_known_pct =
+        have_masks ? robot::band_known_pct(det.road_mask.data.data(), det.obstacle_labels.data.data(),
+                                           std::size_t(det_disp.width), ground_band)
+                   : 100.0;
+    // Hysteresis: engaged below ground_ahead_min_pct, released from ground_ahead_release_pct.
+    ground_unseen = I.rp.ground_ahead_min_pct > 0 && !ground_band.empty() &&
+                    ground_known_pct < (ground_unseen ? I.rp.ground_ahead_release_pct : I.rp.ground_ahead_min_pct);
     stage_ms["detect"].push_back(wall_ms_since(s1));
 
     // ---- track ----
@@ -1089,8 +1116,9 @@ LoopResult RobotLoop::run() {
       scan_turned_rad = 0;
       if (lp.look_before_turn_m > 0 && plan.status == robot::PlanStatus::kMoving) want = sensing_action(want);
     }
-    want = robot::apply_front_stop(want, ahead, I.rp.stop_allows_turning);
+    want = robot::apply_front_stop(want, ahead || ground_unseen, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;
+    if (ground_unseen) ++res.ground_stops;
     const bool held = opt.hold && opt.hold();
     if (held || perception_halt) {
       want = {};
@@ -1209,6 +1237,11 @@ LoopResult RobotLoop::run() {
             {"front_stop", ahead},
             {"map_cells", world_map.occupied_count()}};
     if (I.world || I.sim_motors) fj["true_pose"] = {true_at_capture.x, true_at_capture.y, true_at_capture.yaw};
+    fj["ground_ahead_pct"] = std::round(ground_known_pct * 10) / 10;
+    if (ground_unseen) fj["ground_stop"] = true;
+    if (I.world)
+      fj["true_front_m"] =
+          std::round(true_front_m(*I.world, true_at_capture, robot::ns_to_s(t_frame - t0), I.rp.radius_m, 1.0) * 100) / 100;
     if (perception_fault) fj["perception"] = health.fault();
     if (!opt.record_dir.empty() && frame % 10 == 0) {
       json mj = json::array();

@@ -74,6 +74,7 @@ struct LoopResult {
   double shortest_m = 0;    // shortest collision-free path among the static obstacles (sim) [m]
   double min_clearance_m = 0;  // smallest robot-surface gap to any obstacle (sim) [m]
   int front_stops = 0;      // frames where the stop-distance failsafe held the robot
+  int ground_stops = 0;     // frames where the ground-seen-ahead failsafe held the robot ([robot] ground_ahead_min_pct)
   int look_turns = 0;       // sensing actions begun ([loop] look_before_turn_m)
   int stuck_frames = 0;     // frames planned without near-track circles and reachable sets ([loop] stuck_after_s)
   int static_meas = 0;      // detections found static ([loop] static_meas_age_s)

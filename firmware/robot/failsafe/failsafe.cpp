@@ -1,5 +1,6 @@
 #include "fuzzystereo/robot/failsafe.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -23,6 +24,36 @@ bool obstacle_in_front(const Pose2D& pose, const std::vector<CircleObstacle>& ob
 BodyTwist apply_front_stop(const BodyTwist& cmd, bool obstacle_ahead, bool allow_turning) {
   if (!obstacle_ahead) return cmd;
   return {std::min(cmd.v, 0.0), allow_turning ? cmd.omega : 0.0};
+}
+
+ImageBand ground_band_ahead(int width, int height, double focal_px, double cx, double cy, double height_m,
+                            double pitch_rad, double robot_radius_m, double band_m) {
+  ImageBand b;
+  if (!(height_m > 0.0) || !(focal_px > 0.0) || !(band_m > 0.0) || width <= 0 || height <= 0) return b;
+  const double depress_far = std::atan(height_m / band_m) - pitch_rad;  // below the optical axis
+  if (depress_far <= -0.5 * M_PI || depress_far >= 0.5 * M_PI) return b;
+  const double v_far = cy + focal_px * std::tan(depress_far);
+  b.y0 = std::clamp(static_cast<int>(std::ceil(v_far)), 0, height);
+  b.y1 = height;
+  if (b.y0 >= b.y1) return b;
+  // The nearest ground in view (bottom row), for the band's middle distance.
+  const double depress_bottom = std::atan((height - 1 - cy) / focal_px) + pitch_rad;
+  const double g_near = depress_bottom > 0 ? std::min(band_m, height_m / std::tan(depress_bottom)) : band_m;
+  const double half = focal_px * robot_radius_m / (0.5 * (g_near + band_m));
+  b.x0 = std::clamp(static_cast<int>(std::floor(cx - half)), 0, width);
+  b.x1 = std::clamp(static_cast<int>(std::ceil(cx + half)) + 1, 0, width);
+  return b;
+}
+
+double band_known_pct(const std::uint8_t* road, const std::int32_t* labels, std::size_t stride, const ImageBand& band) {
+  if (band.empty() || road == nullptr || labels == nullptr) return 100.0;
+  long known = 0;
+  for (int y = band.y0; y < band.y1; ++y) {
+    const std::uint8_t* r = road + std::size_t(y) * stride;
+    const std::int32_t* l = labels + std::size_t(y) * stride;
+    for (int x = band.x0; x < band.x1; ++x) known += (r[x] != 0) | (l[x] != 0);
+  }
+  return 100.0 * static_cast<double>(known) / static_cast<double>(band.pixels());
 }
 
 void SimWatchdog::feed(std::int64_t now_ns) {

@@ -23,6 +23,13 @@ RobotParams robot_params_from(const ConfigValues& v) {
   p.arrive_margin_m = v.num("robot.arrive_margin_m");
   p.stop_distance_m = v.num("robot.stop_distance_m");
   p.evade_reverse_mps = v.num("robot.evade_reverse_mps");
+  p.ground_ahead_min_pct = v.num("robot.ground_ahead_min_pct");
+  p.ground_ahead_band_m = v.num("robot.ground_ahead_band_m");
+  p.ground_ahead_release_pct = v.num("robot.ground_ahead_release_pct");
+  if (p.ground_ahead_min_pct > 0 && p.ground_ahead_release_pct < p.ground_ahead_min_pct)
+    throw ConfigError(v.source + ": field 'robot.ground_ahead_release_pct' = " + std::to_string(p.ground_ahead_release_pct) +
+                      " must be >= 'robot.ground_ahead_min_pct' = " + std::to_string(p.ground_ahead_min_pct) +
+                      " (the stop is released at or above the level that engages it)");
   p.stop_allows_turning = v.flag("robot.stop_allows_turning");
   p.odometry_accel_model = v.flag("robot.odometry_accel_model");
   return p;

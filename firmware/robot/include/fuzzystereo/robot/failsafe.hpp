@@ -33,6 +33,23 @@ bool obstacle_in_front(const Pose2D& pose, const std::vector<CircleObstacle>& ob
 // allow_turning (turning on the spot sweeps no new area for a disc robot), zeroed otherwise.
 BodyTwist apply_front_stop(const BodyTwist& cmd, bool obstacle_ahead, bool allow_turning);
 
+// Ground seen ahead (docs/robot.md "Ground seen ahead"). The image band where a flat ground from
+// the nearest visible row up to band_m forward of the camera appears, in the columns of the robot's
+// corridor (half-width robot_radius_m at the band's middle distance): [x0, x1) x [y0, y1). Empty
+// (x0 == x1) when the mounting is unknown (height_m <= 0) or no ground that near is in view.
+// Ground at forward distance g lies on row cy + f tan(atan(height / g) - pitch).
+struct ImageBand {
+  int x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  bool empty() const { return x0 >= x1 || y0 >= y1; }
+  long pixels() const { return empty() ? 0 : long(x1 - x0) * long(y1 - y0); }
+};
+ImageBand ground_band_ahead(int width, int height, double focal_px, double cx, double cy, double height_m,
+                            double pitch_rad, double robot_radius_m, double band_m);
+// Percent of the band's pixels that the detector explained: road (road[i] != 0) or a detected
+// obstacle (labels[i] != 0); both row-major with `stride` elements per row. The rest are holes and
+// speckle: ground the camera does not see. 100 for an empty band (nothing to judge).
+double band_known_pct(const std::uint8_t* road, const std::int32_t* labels, std::size_t stride, const ImageBand& band);
+
 // Simulated-clock watchdog, polled by the loop. on_expire runs once per stall (re-armed by feed()).
 class SimWatchdog {
  public:

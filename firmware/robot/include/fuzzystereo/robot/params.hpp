@@ -28,6 +28,10 @@ struct RobotParams {
   double stop_distance_m = 0.05;      // failsafe: free gap in front below which forward motion stops [m]
   double evade_reverse_mps = 0.2;     // reverse speed allowed only to evade a mover coming at the robot
                                       // when no forward arc is safe (0 = never reverses) [m/s]
+  double ground_ahead_min_pct = 0.0;  // failsafe: forward motion stops while less than this percent of
+                                      // the ground band ahead is road or a detected obstacle (0 = off) [%]
+  double ground_ahead_band_m = 1.0;   // the band: ground up to this far forward of the camera [m]
+  double ground_ahead_release_pct = 80.0;  // ... and, once stopped, moves on only from this percent [%]
   bool stop_allows_turning = true;    // failsafe stop still lets the robot turn on the spot
   bool odometry_accel_model = true;   // commanded odometry (no wheel encoders) integrates the wheels of
                                       // an acceleration-limited model (max_accel_mps2 per wheel, as the
