@@ -576,6 +576,7 @@ LoopResult RobotLoop::run() {
   std::vector<std::pair<std::size_t, std::size_t>> meas_hits;  // each measurement's surface points in scan.hits
   double scan_turned_rad = 0;
   bool ground_unseen = false;  // the ground-seen-ahead stop is engaged ([robot] ground_ahead_min_pct)
+  std::vector<CircleObstacle> unseen_obstacles;  // ... the obstacles it left (world frame; see below)
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
   // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
@@ -781,14 +782,44 @@ LoopResult RobotLoop::run() {
                                            std::size_t(det_disp.width), ground_band)
                    : 100.0;
     // Hysteresis: engaged below ground_ahead_min_pct, released from ground_ahead_release_pct.
-    ground_unseen = I.rp.ground_ahead_min_pct > 0 && !ground_band.empty() &&
-                    ground_known_pct < (ground_unseen ? I.rp.ground_ahead_release_pct : I.rp.ground_ahead_min_pct);
+    {
+      const bool was = ground_unseen;
+      ground_unseen = I.rp.ground_ahead_min_pct > 0 && !ground_band.empty() &&
+                      ground_known_pct < (ground_unseen ? I.rp.ground_ahead_release_pct : I.rp.ground_ahead_min_pct);
+      // Where the stop engages, the planner gets an obstacle where the robot would have driven: a disc
+      // of the robot's radius, safety_margin_m in front of the body, fixed in the world (transient:
+      // it never makes the goal "blocked"). Without it a planner whose goal lies straight ahead keeps
+      // asking for the forward motion the stop removes, and the robot stands; and once the robot has
+      // turned away, the obstacle it could not see is beside it, out of view. It stays until the
+      // camera sees its place free (below).
+      if (ground_unseen && !was) {
+        const Pose2D now = odom.pose();
+        const double ahead_m = 2.0 * I.rp.radius_m + I.pp.safety_margin_m;
+        unseen_obstacles.push_back(CircleObstacle{
+            {now.x + ahead_m * std::cos(now.yaw), now.y + ahead_m * std::sin(now.yaw)}, I.rp.radius_m, {}, true});
+      }
+    }
     stage_ms["detect"].push_back(wall_ms_since(s1));
 
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
     measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
+    // An unseen-ground obstacle goes when the camera sees its whole disc free: its centre in view,
+    // beyond the camera's near range, and its column's free range past the far edge of the disc; or
+    // when the robot is farther from it than the planner looks ([loop] plan_radius_m: the list stays
+    // short on a long mission).
+    if (!perception_fault)
+      std::erase_if(unseen_obstacles, [&](const CircleObstacle& u) {
+        const double dx = u.c.x - pose.x, dy = u.c.y - pose.y;
+        if (std::hypot(dx, dy) > lp.plan_radius_m) return true;
+        const double fwd = std::cos(pose.yaw) * dx + std::sin(pose.yaw) * dy;
+        const double left = -std::sin(pose.yaw) * dx + std::cos(pose.yaw) * dy;
+        if (fwd - u.r < scan.min_range_m) return false;
+        const long col = std::lround(scan.cx - scan.focal_px * left / fwd);
+        if (col < 0 || col >= static_cast<long>(scan.free_range_m.size())) return false;
+        return scan.free_range_m[static_cast<std::size_t>(col)] >= fwd + u.r;
+      });
     scan.t_ns = t_frame - t0;  // the tracker's time base
     std::vector<Vec2> static_meas_p;  // this frame's detections found static (record)
     if (lp.static_meas_age_s > 0) {
@@ -992,6 +1023,10 @@ LoopResult RobotLoop::run() {
           }
         }
       }
+    }
+    for (const CircleObstacle& u : unseen_obstacles) {  // the ground-seen-ahead stop's obstacles (above)
+      obstacles.push_back(u);
+      kinds.push_back('g');
     }
     // Soft memory ([planner] w_memory > 0, session 29): every confirmed mover-like track (filtered speed
     // >= moving_speed_mps, no static support), live or deleted, whose last measurement lies out of the

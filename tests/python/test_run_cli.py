@@ -34,6 +34,30 @@ def test_mission_reaches_goal_without_collision(firmware_bin, common_dir, tmp_pa
     assert max(f["map_cells"] for f in frames) > 0
 
 
+@pytest.mark.parametrize("min_pct", [0, 40])
+def test_ground_seen_ahead_goes_round_an_obstacle_the_camera_cannot_see(firmware_bin, common_dir, tmp_path, min_pct):
+    # A plain dark cylinder 5 cm in front of the body, the goal behind it: too near and too plain to
+    # match, the detector finds nothing and the map stays empty. Without the ground-seen-ahead stop
+    # ([robot] ground_ahead_min_pct = 0) the robot drives into it; with it the stop engages on the
+    # first frame, the planner gets an obstacle where the robot would have driven, and the robot goes
+    # round (docs/robot.md "Session 32").
+    cfg = tmp_path / "g.toml"
+    cfg.write_text(f"[robot]\nground_ahead_min_pct = {min_pct}\n")
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/near_wall.toml'}", "--quiet",
+            "--config", str(cfg), "--json", str(out), "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    frames = [json.loads(line) for line in (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()]
+    assert frames[0]["ground_ahead_pct"] < 10.0  # holes and speckle in front
+    if min_pct == 0:
+        assert r["collided"] and r["ground_stops"] == 0, r
+    else:
+        assert r["status"] == "reached" and not r["collided"], r
+        assert r["ground_stops"] > 0 and frames[0].get("ground_stop") is True
+        assert frames[0]["cmd"][0] == 0.0  # no forward motion on the first frame
+
+
 def test_watchdog_stops_motors_after_a_stall(firmware_bin, common_dir):
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
             "--stall-frame", "8", "--stall-ms", "500", "--max-frames", "12")

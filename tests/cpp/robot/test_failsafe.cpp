@@ -3,9 +3,11 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <iostream>
 #include <thread>
+#include <vector>
 
 #include "fuzzystereo/robot/clock.hpp"
 #include "fuzzystereo/robot/failsafe.hpp"
@@ -45,6 +47,60 @@ TEST(FrontStop, CorridorAndDistance) {
   EXPECT_EQ(c.omega, 0.5);
   EXPECT_EQ(apply_front_stop({0.4, 0.5}, true, false).omega, 0.0);
   EXPECT_EQ(apply_front_stop({0.4, 0.5}, false, false).v, 0.4);
+}
+
+// The ground band ahead of the suite's robot camera (320 x 180, f 134.26 px, 0.40 m high, 5 deg down,
+// robot radius 0.15 m, band up to 1.0 m): its rows are where a flat ground from the bottom row's distance
+// to 1.0 m projects, checked against a pinhole projection of ground points; its columns the corridor.
+TEST(GroundSeenAhead, BandIsTheCorridorGroundUpToTheBandDistance) {
+  const int W = 320, H = 180;
+  const double f = 134.26, cx = 159.5, cy = 89.5, Hc = 0.40, pitch = 5.0 * M_PI / 180.0, R = 0.15;
+  const ImageBand b = ground_band_ahead(W, H, f, cx, cy, Hc, pitch, R, 1.0);
+  ASSERT_FALSE(b.empty());
+  // project a ground point (forward g, lateral l) into the pitched camera
+  auto project = [&](double g, double l, double& u, double& v) {
+    const double zc = g * std::cos(pitch) + Hc * std::sin(pitch);  // along the optical axis
+    const double yc = Hc * std::cos(pitch) - g * std::sin(pitch);  // down in the image
+    u = cx - f * l / zc;
+    v = cy + f * yc / zc;
+  };
+  double u, v;
+  project(1.0, 0.0, u, v);
+  EXPECT_EQ(b.y0, static_cast<int>(std::ceil(v)));  // the first row at or below the ground 1.0 m ahead
+  project(1.02, 0.0, u, v);
+  EXPECT_LT(v, b.y0);  // ground beyond the band lies above it
+  EXPECT_EQ(b.y1, H);
+  // the corridor: +-R at the band's middle distance, symmetric about cx
+  project(0.9, 0.0, u, v);
+  EXPECT_GT(v, b.y0);
+  EXPECT_NEAR(0.5 * (b.x0 + b.x1 - 1), cx, 1.0);
+  const double g_near = Hc / std::tan(std::atan((H - 1 - cy) / f) + pitch);  // the bottom row's ground
+  EXPECT_NEAR(g_near, 0.50, 0.01);
+  const double half = f * R / (0.5 * (g_near + 1.0));
+  EXPECT_NEAR(b.x1 - b.x0, 2.0 * half + 1.0, 2.0);
+  // unknown mounting, or a band that ends before the nearest ground in view: nothing to judge
+  EXPECT_TRUE(ground_band_ahead(W, H, f, cx, cy, 0.0, pitch, R, 1.0).empty());
+  EXPECT_TRUE(ground_band_ahead(W, H, f, cx, cy, Hc, pitch, R, 0.3).empty());
+  // looking up (pitch -60 deg): no ground in view at all
+  EXPECT_TRUE(ground_band_ahead(W, H, f, cx, cy, Hc, -60.0 * M_PI / 180.0, R, 1.0).empty());
+}
+
+TEST(GroundSeenAhead, KnownShareCountsRoadOrObstaclePixelsInsideTheBand) {
+  const int W = 8, H = 6;
+  std::vector<std::uint8_t> road(W * H, 0);
+  std::vector<std::int32_t> labels(W * H, 0);
+  ImageBand b;
+  b.x0 = 2; b.x1 = 6; b.y0 = 3; b.y1 = 6;  // 4 x 3 = 12 pixels
+  EXPECT_EQ(b.pixels(), 12);
+  EXPECT_DOUBLE_EQ(band_known_pct(road.data(), labels.data(), W, b), 0.0);
+  for (int x = 0; x < W; ++x) road[std::size_t(5 * W + x)] = 1;  // the bottom row is road: 4 of 12 inside
+  labels[std::size_t(3 * W + 2)] = 7;                             // an obstacle pixel inside
+  labels[std::size_t(4 * W + 2)] = 7;
+  road[std::size_t(4 * W + 2)] = 1;                                // road and obstacle: counted once
+  labels[std::size_t(0 * W + 0)] = 3;                              // outside the band: not counted
+  road[std::size_t(3 * W + 7)] = 1;                                // outside (x = 7)
+  EXPECT_DOUBLE_EQ(band_known_pct(road.data(), labels.data(), W, b), 100.0 * 6.0 / 12.0);
+  EXPECT_DOUBLE_EQ(band_known_pct(road.data(), labels.data(), W, ImageBand{}), 100.0);  // empty band
 }
 
 TEST(Watchdog, SimClockStallStopsWithin100ms) {

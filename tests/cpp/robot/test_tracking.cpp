@@ -582,6 +582,24 @@ TEST(Tracker, ConfigOverridesAndErrors) {
     EXPECT_NE(std::string(e.what()).find("tracker.accel_sigma_mps2"), std::string::npos) << e.what();
   }
   EXPECT_NO_THROW(tracker_params_from(parse_config("[tracker]\naccel_sigma_steady_mps2 = 0.0\n", "t.toml").values));
+  try {  // the ground-seen-ahead stop released below the level that engages it
+    robot_params_from(parse_config("[robot]\nground_ahead_min_pct = 50\nground_ahead_release_pct = 30\n", "t.toml").values);
+    FAIL() << "release below the engaging level accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("robot.ground_ahead_release_pct"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("robot.ground_ahead_min_pct"), std::string::npos) << e.what();
+  }
+  try {  // out of its schema range: the loader names the field and the range
+    parse_config("[robot]\nground_ahead_min_pct = 120\n", "t.toml");
+    FAIL() << "ground_ahead_min_pct 120 accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("robot.ground_ahead_min_pct"), std::string::npos) << e.what();
+  }
+  const RobotParams rp =
+      robot_params_from(parse_config("[robot]\nground_ahead_min_pct = 40\nground_ahead_band_m = 1.5\n", "t.toml").values);
+  EXPECT_EQ(rp.ground_ahead_min_pct, 40.0);
+  EXPECT_EQ(rp.ground_ahead_band_m, 1.5);
+  EXPECT_EQ(rp.ground_ahead_release_pct, 80.0);
 }
 
 }  // namespace
