@@ -13,12 +13,27 @@ using namespace fs::link;
 namespace sfs = std::filesystem;
 
 namespace {
-sfs::path fresh_dir(const std::string& name) {
-  const auto d = sfs::temp_directory_path() / ("fs_link_test_" + name + "_" + std::to_string(::getpid()));
-  sfs::remove_all(d);
-  sfs::create_directories(d);
-  return d;
-}
+// A fresh directory under the system temp directory, removed again when the test ends (pass or
+// fail), so repeated test runs leave nothing behind in /tmp.
+class FreshDir {
+ public:
+  explicit FreshDir(const std::string& name)
+      : d_(sfs::temp_directory_path() / ("fs_link_test_" + name + "_" + std::to_string(::getpid()))) {
+    sfs::remove_all(d_);
+    sfs::create_directories(d_);
+  }
+  ~FreshDir() {
+    std::error_code ec;
+    sfs::remove_all(d_, ec);
+  }
+  FreshDir(const FreshDir&) = delete;
+  FreshDir& operator=(const FreshDir&) = delete;
+  operator const sfs::path&() const { return d_; }
+  sfs::path operator/(const std::string& f) const { return d_ / f; }
+
+ private:
+  sfs::path d_;
+};
 std::vector<std::uint8_t> file_bytes(const sfs::path& p) {
   const std::string t = read_file_text(p);
   return {t.begin(), t.end()};
@@ -26,7 +41,7 @@ std::vector<std::uint8_t> file_bytes(const sfs::path& p) {
 }  // namespace
 
 TEST(ConfigStore, CommitValidatesKeepsBackupAndRefusesBadConfig) {
-  const auto d = fresh_dir("cfg");
+  const FreshDir d("cfg");
   ConfigStore s(d);
   EXPECT_EQ(s.load().source, "defaults");
   const auto a = s.commit("[esr]\nwindow = 7\n");
@@ -45,7 +60,7 @@ TEST(ConfigStore, CommitValidatesKeepsBackupAndRefusesBadConfig) {
 }
 
 TEST(ConfigStore, CorruptActiveFallsBackToBackupAndSaysSo) {
-  const auto d = fresh_dir("cfg2");
+  const FreshDir d("cfg2");
   ConfigStore s(d);
   s.commit("[esr]\nwindow = 7\n");
   s.commit("[esr]\nwindow = 9\n");
@@ -57,7 +72,7 @@ TEST(ConfigStore, CorruptActiveFallsBackToBackupAndSaysSo) {
 }
 
 TEST(LogStore, RecordsRotationAndTruncatedTail) {
-  const auto d = fresh_dir("log");
+  const FreshDir d("log");
   std::vector<std::uint32_t> ids;
   {
     LogStore s(d, 4096, 3);
