@@ -86,6 +86,19 @@ def test_static_in_view_standing_and_no_contact(tmp_path: Path) -> None:
     assert r["obstacle"] is None and r["class"] == "static"
 
 
+def test_ground_ahead_share_over_the_last_second(tmp_path: Path) -> None:
+    static = {"id": 1, "shape": "circle", "radius": 0.2, "x": 0.34, "y": 0.0}
+    d = _record(tmp_path, "g", static, (0.3, 0.0), {"collided": True})
+    assert trace_contact(d)["ground_ahead_min_pct"] is None  # a record without the field
+    lines = [json.loads(x) for x in (d / "frames.jsonl").read_text().splitlines()]
+    for f, pct in zip(lines, [5.0, 90.0, 90.0, 90.0, 90.0, 80.0, 70.0, 30.0, 12.5, 40.0]):
+        f["ground_ahead_pct"] = pct
+    (d / "frames.jsonl").write_text("\n".join(json.dumps(f) for f in lines) + "\n")
+    # frames from t = 1.0 s on (the contact at 2.0 s): 80, 70, 30, 12.5, 40; the 5 % at t = 0 is older
+    assert trace_contact(d)["ground_ahead_min_pct"] == pytest.approx(12.5)
+    assert trace_contact(d, ground_window_s=2.0)["ground_ahead_min_pct"] == pytest.approx(5.0)
+
+
 def test_cli_expands_a_suite_record_directory(tmp_path: Path, capsys) -> None:
     suite = tmp_path / "rec"
     suite.mkdir()

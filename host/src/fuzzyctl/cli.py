@@ -699,7 +699,9 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
 def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     """For each run that ended in a contact (`fuzzystereo sim suite --record DIR`; pass run
     directories or a suite's record directory): the obstacle hit, its bearing, whether the camera saw
-    it, what the robot was doing, the last track near it, and a class (docs/robot.md "Session 29")."""
+    it, what the robot was doing, the last track near it, the least share of the ground ahead the
+    detector explained in the last second ("ground %", docs/robot.md "Session 32"), and a class
+    (docs/robot.md "Session 29")."""
     import json as _json
 
     from rich.table import Table
@@ -718,7 +720,8 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     r = contacts(dirs)
     opt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     t = Table(title=f"contacts: {len(r['contacts'])} of {r['records']} records")
-    for col in ("run", "t s", "class", "obst", "mover v", "bearing deg", "robot v, w", "seen s ago", "tracked s ago", "track"):
+    for col in ("run", "t s", "class", "obst", "mover v", "bearing deg", "robot v, w", "seen s ago", "tracked s ago", "track",
+                "ground %"):
         t.add_column(col, justify="right")
     for c in r["contacts"]:
         tr = c.get("track")
@@ -727,7 +730,8 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
                   opt(c.get("bearing_deg"), "+.0f"), f"{c['robot_speed_mps']:.2f}, {c['robot_turn_radps']:+.2f}",
                   opt(c.get("seen_s_before"), ".1f"), opt(c.get("tracked_s_before"), ".1f"),
                   "-" if tr is None else f"#{tr['id']} {'C' if tr['confirmed'] else 'u'}{'M' if tr['mover'] else ''} "
-                                         f"{tr['speed_mps']:.2f} m/s")
+                                         f"{tr['speed_mps']:.2f} m/s",
+                  opt(c.get("ground_ahead_min_pct"), ".0f"))
     console.print(t)
     console.print(", ".join(f"{k}: {v}" for k, v in r["classes"].items()))
     if json_out is not None:

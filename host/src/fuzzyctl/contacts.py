@@ -14,7 +14,9 @@ solid movers with their turns, :func:`fuzzyctl.simworld.obstacle_state`):
 - what the robot **did**: moving (|commanded linear| >= ``moving_mps``), and whether it was turning
   towards the obstacle's side (angular command of the bearing's sign, above ``turn_radps``);
 - what it **knew**: when the obstacle was last inside the view (within ``view_range_m``), when a
-  track was last within ``track_match_m`` of it, and that track's flags (confirmed, mover) and speed.
+  track was last within ``track_match_m`` of it, and that track's flags (confirmed, mover) and speed;
+  and the least share of the ground band ahead the detector explained in the last ``ground_window_s``
+  (low: the robot drove at something the camera could not see; docs/robot.md "Session 32").
 
 Each contact gets one class (first that applies):
 
@@ -58,8 +60,17 @@ def _moving(o: dict[str, Any]) -> bool:
     return bool(o.get("vx", 0.0) or o.get("vy", 0.0) or any(k[1] or k[2] for k in o.get("turns", [])))
 
 
+def ground_ahead_min_pct(frames: list[dict[str, Any]], t_from: float) -> float | None:
+    """The least share of the ground band ahead that the detector explained (frames.jsonl
+    ``ground_ahead_pct``, docs/robot.md "Session 32") over the frames from ``t_from`` on; None when
+    the record has no such field (records before session 32)."""
+    vals = [float(f["ground_ahead_pct"]) for f in frames if "ground_ahead_pct" in f and float(f["t"]) >= t_from]
+    return min(vals) if vals else None
+
+
 def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float = 0.05, turn_radps: float = 0.05,
-                  view_range_m: float = 6.0, track_match_m: float = 0.5) -> dict[str, Any] | None:
+                  view_range_m: float = 6.0, track_match_m: float = 0.5,
+                  ground_window_s: float = 1.0) -> dict[str, Any] | None:
     """The contact of one run record, or None when the run ended without one."""
     run, frames = load_run(run_dir)
     res = run.get("result", {})
@@ -89,7 +100,8 @@ def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float
         if best is None or clr < best[0]:
             best = (clr, o)
     out: dict[str, Any] = {"run": Path(run_dir).name, "time_s": t_end, "status": res.get("status"),
-                           "robot_speed_mps": v, "robot_turn_radps": w}
+                           "robot_speed_mps": v, "robot_turn_radps": w,
+                           "ground_ahead_min_pct": ground_ahead_min_pct(frames, t_end - ground_window_s)}
     if best is None or best[0] > max_clearance_m:
         out.update({"obstacle": None, "class": "static", "note": "not a round obstacle (box or wall)"})
         return out
