@@ -768,7 +768,7 @@ LoopResult RobotLoop::run() {
     s1 = std::chrono::steady_clock::now();
     const ImageI16& det_disp = detection_disparity(mr, det_input);  // [detect] input
     const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
-    // Ground seen ahead ([robot] ground_ahead_min_pct, docs/robot.md "Ground seen ahead"): the share
+    // Ground seen ahead ([robot] ground_ahead_min_pct, docs/robot.md "Session 32"): the share
     // of the corridor's ground band that the detector explained as road or as an obstacle (the map
     // and the tracks hold those); the rest is ground the camera does not see — an obstacle nearer
     // than the matcher's range or without texture. The front stop below acts on it.
@@ -792,7 +792,7 @@ LoopResult RobotLoop::run() {
       // asking for the forward motion the stop removes, and the robot stands; and once the robot has
       // turned away, the obstacle it could not see is beside it, out of view. It stays until the
       // camera sees its place free (below).
-      if (ground_unseen && !was) {
+      if (ground_unseen && !was && !perception_fault) {  // a blind camera is the perception failsafe's
         const Pose2D now = odom.pose();
         const double ahead_m = 2.0 * I.rp.radius_m + I.pp.safety_margin_m;
         unseen_obstacles.push_back(CircleObstacle{

@@ -33,7 +33,7 @@ bool obstacle_in_front(const Pose2D& pose, const std::vector<CircleObstacle>& ob
 // allow_turning (turning on the spot sweeps no new area for a disc robot), zeroed otherwise.
 BodyTwist apply_front_stop(const BodyTwist& cmd, bool obstacle_ahead, bool allow_turning);
 
-// Ground seen ahead (docs/robot.md "Ground seen ahead"). The image band where a flat ground from
+// Ground seen ahead (docs/robot.md "Session 32"). The image band where a flat ground from
 // the nearest visible row up to band_m forward of the camera appears, in the columns of the robot's
 // corridor (half-width robot_radius_m at the band's middle distance): [x0, x1) x [y0, y1). Empty
 // (x0 == x1) when the mounting is unknown (height_m <= 0) or no ground that near is in view.
