@@ -423,6 +423,11 @@ LoopResult RobotLoop::run() {
     have_goal = true;
   }
   if (!have_goal) throw UserError("no goal: give --goal X,Y or a [mission] in the scene file");
+  if (I.rp.ground_ahead_min_pct > 0 && !(I.calib.height_m > 0.0))
+    std::fprintf(stderr,
+                 "warning: [robot] ground_ahead_min_pct = %g but the calibration gives no camera height "
+                 "(height_m): the ground-seen-ahead stop stays off (docs/robot.md \"Session 32\")\n",
+                 I.rp.ground_ahead_min_pct);
 
   // ---- motors (start stopped) ----
   if (opt.motors == "sim") {

@@ -84,3 +84,21 @@ def test_dataset_replay_through_the_loop(firmware_bin, datasets_root):
     assert p.returncode == 0, p.stderr
     assert "status end_of_stream" in p.stdout and "frames 1" in p.stdout
     assert "frame    0" in p.stderr and "obst=" in p.stderr
+
+
+def test_ground_seen_ahead_without_a_camera_height_says_it_is_off(firmware_bin, datasets_root, tmp_path):
+    # A KITTI replay carries focal length and baseline but no mounting height: the ground band cannot
+    # be placed, so the stop cannot act; the user is told once, at start-up.
+    kitti = datasets_root / "kitti2015"
+    if not kitti.is_dir():
+        pytest.skip(f"{kitti} not found (FUZZYSTEREO_DATASETS)")
+    cfg = tmp_path / "g.toml"
+    cfg.write_text("[robot]\nground_ahead_min_pct = 40\n")
+    p = run(firmware_bin, "run", "--source", f"replay:{kitti}", "--goal", "5,0", "--max-frames", "1", "--quiet",
+            "--config", str(cfg), timeout=300)
+    assert p.returncode == 0, p.stderr
+    warn = [ln for ln in p.stderr.splitlines() if "ground_ahead_min_pct" in ln]
+    assert len(warn) == 1 and "no camera height" in warn[0] and "stays off" in warn[0], p.stderr
+    p = run(firmware_bin, "run", "--source", f"replay:{kitti}", "--goal", "5,0", "--max-frames", "1", "--quiet",
+            timeout=300)
+    assert "ground_ahead_min_pct" not in p.stderr  # off by default: nothing to say
