@@ -1336,7 +1336,19 @@ LoopResult RobotLoop::run() {
         std::snprintf(stem, sizeof stem, "%06d", frame);
         const stdfs::path base = stdfs::path(opt.record_dir) / "frames";
         const bool saved = recorder.snapshot([&] {
-          write_image((base / (std::string(stem) + "_overlay.png")).string(), draw_overlay(left_bgr, det));
+          cv::Mat ov = draw_overlay(left_bgr, det);
+          if (!ground_band.empty()) {
+            // The ground band ahead (docs/robot.md "Session 32"): yellow while its stop is engaged,
+            // grey otherwise, with the share of it the detector explained.
+            const cv::Scalar col = ground_unseen ? cv::Scalar(0, 220, 255) : cv::Scalar(160, 160, 160);
+            cv::rectangle(ov, cv::Point(ground_band.x0, ground_band.y0), cv::Point(ground_band.x1 - 1, ground_band.y1 - 1),
+                          col, 1);
+            char pct[16];
+            std::snprintf(pct, sizeof pct, "%.0f%%", ground_known_pct);
+            cv::putText(ov, pct, cv::Point(ground_band.x0 + 2, std::max(10, ground_band.y0 - 3)), cv::FONT_HERSHEY_SIMPLEX,
+                        0.35, col, 1, cv::LINE_AA);
+          }
+          write_image((base / (std::string(stem) + "_overlay.png")).string(), ov);
           const cv::Mat dispf = disp_q4_to_float(detection_disparity(mr, det_input));
           write_image((base / (std::string(stem) + "_disp.png")).string(),
                       colorize_disparity(dispf, I.cfg.matcher.cost.max_disparity));
