@@ -88,6 +88,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
   p.unseen_check_s = v.num("planner.unseen_check_s");
   p.w_memory = v.num("planner.w_memory");
+  p.max_lateral_accel_mps2 = v.num("planner.max_lateral_accel_mps2");
   return p;
 }
 

@@ -454,6 +454,8 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   for (int iv = 0; iv < dw.nv; ++iv) {
     for (int iw = 0; iw < dw.nw; ++iw) {
       const auto [v, w] = dw.at(iv, iw);
+      // [planner] max_lateral_accel_mps2: no sharp turns at speed (turning on the spot stays free).
+      if (pp_.max_lateral_accel_mps2 > 0 && v * std::abs(w) > pp_.max_lateral_accel_mps2) continue;
       if (check_seen && v > 0.02 && drives_into_unseen(pose, v, w, lead, pp_, ctx.recently_seen)) continue;
       const ArcEval a = eval_arc(pose, v, w, false, near, hard2, out.carrot, pp_, rp_);
       double collide_pen = 0;

@@ -107,6 +107,9 @@ struct PlannerParams {
   double w_memory = 0.0;             // cost weight: how deep an arc enters the remembered places of
                                      // movers out of view (PlanContext::memory; docs/robot.md
                                      // "Session 29"); 0 = off
+  double max_lateral_accel_mps2 = 0.0;  // arcs with v |omega| above this are not driven: a sharp turn
+                                        // at speed sweeps the body into ground the forward camera has
+                                        // not seen (docs/robot.md "Session 32"); 0 = off [m/s^2]
 };
 
 // [watchdog]
