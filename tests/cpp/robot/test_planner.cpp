@@ -152,6 +152,29 @@ TEST(Planner, FreeSpaceDrivesTowardsTheGoal) {
   EXPECT_GT(l.cmd.omega, 0.1);
 }
 
+// [planner] max_lateral_accel_mps2: a robot at speed whose goal lies behind its left shoulder turns
+// sharply without the limit; with it, no command has v |omega| above the limit, and it still turns
+// towards the goal (slower, or on the spot).
+TEST(Planner, LateralAccelerationLimitKeepsSharpTurnsSlow) {
+  PlannerParams pp = planner();
+  pp.max_lateral_accel_mps2 = 0.0;  // off
+  const RobotParams rp = robot();
+  const Pose2D start{0, 0, 0};
+  const BodyTwist moving{0.3, 0.0};
+  const Vec2 goal{-0.5, 1.5};
+  const PlanOutput free_turn = Planner(pp, rp).plan(start, moving, goal, {});
+  ASSERT_EQ(free_turn.status, PlanStatus::kMoving);
+  EXPECT_GT(free_turn.cmd.v * std::abs(free_turn.cmd.omega), 0.3);  // the sharp turn at speed
+  pp.max_lateral_accel_mps2 = 0.3;
+  const PlanOutput limited = Planner(pp, rp).plan(start, moving, goal, {});
+  ASSERT_EQ(limited.status, PlanStatus::kMoving);
+  EXPECT_LE(limited.cmd.v * std::abs(limited.cmd.omega), 0.3 + 1e-9);
+  EXPECT_GT(limited.cmd.omega, 0.1);  // still turning left, towards the goal
+  // from standing, turning on the spot is not limited
+  const PlanOutput spot = Planner(pp, rp).plan(start, {0.0, 0.0}, goal, {});
+  EXPECT_GT(spot.cmd.omega, 0.1);
+}
+
 TEST(Planner, ReachedStops) {
   const Planner p(planner(), robot());
   const PlanOutput o = p.plan({1.0, 1.0, 0}, {0.2, 0}, {1.05, 1.0}, {});
