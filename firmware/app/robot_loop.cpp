@@ -1279,7 +1279,8 @@ LoopResult RobotLoop::run() {
     if (I.world || I.sim_motors) fj["true_pose"] = {true_at_capture.x, true_at_capture.y, true_at_capture.yaw};
     fj["ground_ahead_pct"] = std::round(ground_known_pct * 10) / 10;
     if (ground_unseen) fj["ground_stop"] = true;
-    if (I.world)
+    // Truth for analysis only (50 clearance queries): computed when the frame record is read.
+    if (I.world && (recorder.enabled() || opt.on_frame))
       fj["true_front_m"] =
           std::round(true_front_m(*I.world, true_at_capture, robot::ns_to_s(t_frame - t0), I.rp.radius_m, 1.0) * 100) / 100;
     if (perception_fault) fj["perception"] = health.fault();
