@@ -84,6 +84,12 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.neck_max_share = v.num("detect.neck_max_share");
   p.neck_min_px = v.integer("detect.neck_min_px");
   p.neck_foot_share = v.num("detect.neck_foot_share");
+  p.seam_min_step = v.num("detect.seam_min_step");
+  p.seam_window_px = v.integer("detect.seam_window_px");
+  p.seam_min_width_px = v.integer("detect.seam_min_width_px");
+  p.seam_min_px = v.integer("detect.seam_min_px");
+  p.seam_max_cuts = v.integer("detect.seam_max_cuts");
+  p.seam_min_rows = v.num("detect.seam_min_rows");
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_gap_vertical_px = v.integer("detect.merge_gap_vertical_px");

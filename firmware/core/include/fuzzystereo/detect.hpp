@@ -106,6 +106,14 @@ struct DetectParams {
   int neck_min_px = 100;           // ... and each side of the cut keeps at least this many pixels
   double neck_foot_share = 0.0;    // ... and (> 0) the thin columns' pixels all lie in this lowest share of
                                    // the box rows (a strip at the feet); 0 = at any height
+  double seam_min_step = 0.0;      // cut an obstacle where the mean chromaticity of its columns changes by at
+                                   // least this (max over r, g, b of c / (r + g + b), regularised) between the
+                                   // seam_window columns on each side (two touching obstacles; session 33; 0 = off)
+  int seam_window_px = 8;          // ... columns compared on each side of a seam [px]
+  int seam_min_width_px = 14;      // ... each side of a cut keeps at least this many columns [px]
+  int seam_min_px = 300;           // ... and at least this many pixels
+  int seam_max_cuts = 2;           // ... at most this many cuts per obstacle
+  double seam_min_rows = 0.7;      // ... and at least this share of its rows agree with the cut (0 = no row test)
   double merge_edge_rel_disparity = 0.05;  // side-by-side groups whose facing edges' disparities differ <= this
                                        // share join (a slanted surface cut by k-means; 0 = off)
   int merge_edge_columns = 4;      // ... the edge = this many outermost columns of each group [px]
@@ -310,6 +318,23 @@ ImageI32 split_bimodal_components(const ImageI32& components, int count, const I
 // component's box rows (a strip at the feet).
 ImageI32 split_necks(const ImageI32& components, int count, int min_width, double max_share, int min_px,
                      double foot_share, int* out_count);
+// Seams (docs/detection.md "(e) Seams", session 33): two obstacles side by side at nearly one depth,
+// which no disparity rule separates, usually differ in colour. Per label, the pixel sums of R, G, B of
+// each column of its box; at a boundary between columns, the chromaticity of the label's pixels in the
+// `window` columns on each side, c = (sum C + 10 n) / (sum R + sum G + sum B + 30 n) for C in R, G, B
+// (Q16, integer; the 10 grey levels per pixel keep dark pixels' chromaticity from swinging), and the
+// step = the largest |c_left - c_right| of the three. The boundary of the largest step, when it is
+// >= min_step, leaves >= min_width columns and >= min_px pixels on each side and passes the row test,
+// cuts the label there (candidates are tried strongest first);
+// each side is searched again, up to max_cuts cuts per label. Row test (min_rows > 0): of the
+// label's rows with pixels within 3 columns on both sides of the boundary, at least the share min_rows
+// have their left pixels' chromaticity nearer the left window's than the right's and their right
+// pixels' nearer the right window's (a seam runs down the whole box; blobs of one camouflaged
+// surface do not). Every cut part becomes one label (its
+// pixels need not be connected), other labels are kept whole; labels renumbered in raster order of
+// first appearance. min_step <= 0, an empty rgb or no cut: unchanged (and *out_count = count).
+ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, double min_step, int window,
+                     int min_width, int min_px, int max_cuts, double min_rows, int* out_count);
 
 // Box, size, median disparity, Z, X and class per component (components >= min area), nearest
 // first; fills `labels` (0 none, id+1).

@@ -132,6 +132,19 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
       r.obstacles = detect::measure_obstacles(cut, nn, disp, calib, pm, &r.obstacle_labels);
     }
   }
+  // Seams (session 33): two obstacles side by side at nearly one depth, cut where the colour changes.
+  if (p.seam_min_step > 0 && !rgb.empty()) {
+    int ns = 0;
+    const ImageI32 cut = detect::split_seams(r.obstacle_labels, int(r.obstacles.size()), rgb, p.seam_min_step,
+                                             p.seam_window_px, p.seam_min_width_px, p.seam_min_px, p.seam_max_cuts, p.seam_min_rows, &ns);
+    if (ns != int(r.obstacles.size())) {
+      DetectParams pm = p;  // the parts stay apart (as after a neck cut)
+      pm.merge_gap_px = 0;
+      pm.merge_edge_rel_disparity = 0;
+      pm.contain_min_inside = 0;
+      r.obstacles = detect::measure_obstacles(cut, ns, disp, calib, pm, &r.obstacle_labels);
+    }
+  }
   // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
   detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
   // Seen through (session 8): a farther obstacle enclosed above and below by a nearer one.

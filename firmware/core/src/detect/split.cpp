@@ -15,6 +15,8 @@
 // between two full parts (two posts joined through a strip of road at their feet that the matcher
 // gave their disparity) is cut there; split_necks works on the column pixel counts of each label.
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -261,6 +263,173 @@ ImageI32 split_necks(const ImageI32& components, int count, int min_width, doubl
       const std::int32_t k = piece[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])];
       if (k == 0) continue;
       int& r = renum[std::size_t(k)];
+      if (r == 0) r = ++m;
+      d[x] = r;
+    }
+  }
+  if (out_count) *out_count = m;
+  return out;
+}
+
+ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, double min_step, int window,
+                     int min_width, int min_px, int max_cuts, double min_rows, int* out_count) {
+  const int w = labels.width, h = labels.height;
+  if (min_step <= 0 || count <= 0 || max_cuts <= 0 || window <= 0 || rgb.width != w || rgb.height != h || rgb.empty()) {
+    if (out_count) *out_count = count;
+    return labels;
+  }
+  // Column sums per label over its box: pixels and R, G, B (int64: <= 255 * image pixels).
+  std::vector<int> x0(std::size_t(count) + 1, w), x1(std::size_t(count) + 1, -1);
+  std::vector<int> y0(std::size_t(count) + 1, h), y1(std::size_t(count) + 1, -1);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = labels.row(y);
+    for (int x = 0; x < w; ++x)
+      if (l[x] > 0 && l[x] <= count) {
+        const std::size_t c = std::size_t(l[x]);
+        x0[c] = std::min(x0[c], x), x1[c] = std::max(x1[c], x), y0[c] = std::min(y0[c], y), y1[c] = std::max(y1[c], y);
+      }
+  }
+  std::vector<std::size_t> off(std::size_t(count) + 2, 0);
+  for (int c = 1; c <= count; ++c)
+    off[std::size_t(c) + 1] = off[std::size_t(c)] + std::size_t(x1[std::size_t(c)] >= x0[std::size_t(c)] ? x1[std::size_t(c)] - x0[std::size_t(c)] + 1 : 0);
+  struct Sums {
+    std::int64_t n = 0, r = 0, g = 0, b = 0;
+  };
+  std::vector<Sums> cols(off[std::size_t(count) + 1]);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = labels.row(y);
+    const Rgb8* px = rgb.row(y);
+    for (int x = 0; x < w; ++x)
+      if (l[x] > 0 && l[x] <= count) {
+        Sums& s = cols[off[std::size_t(l[x])] + std::size_t(x - x0[std::size_t(l[x])])];
+        ++s.n, s.r += px[x].r, s.g += px[x].g, s.b += px[x].b;
+      }
+  }
+  // Chromaticity step between two column ranges' sums, Q16 (see the header).
+  auto chroma_step = [](const Sums& a, const Sums& b) {
+    const std::int64_t da = a.r + a.g + a.b + 30 * a.n, db = b.r + b.g + b.b + 30 * b.n;
+    std::int64_t step = 0;
+    const std::int64_t ca[3] = {a.r, a.g, a.b}, cb[3] = {b.r, b.g, b.b};
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t qa = ((ca[k] + 10 * a.n) << 16) / da, qb = ((cb[k] + 10 * b.n) << 16) / db;
+      step = std::max(step, qa > qb ? qa - qb : qb - qa);
+    }
+    return step;
+  };
+  const auto threshold = static_cast<std::int64_t>(std::llround(min_step * 65536.0));
+  auto chroma = [](const Sums& a, std::int64_t q[3]) {
+    const std::int64_t d = a.r + a.g + a.b + 30 * a.n;
+    q[0] = ((a.r + 10 * a.n) << 16) / d, q[1] = ((a.g + 10 * a.n) << 16) / d, q[2] = ((a.b + 10 * a.n) << 16) / d;
+  };
+  auto dist2 = [](const std::int64_t p[3], const std::int64_t q[3]) {
+    std::int64_t s2 = 0;
+    for (int k = 0; k < 3; ++k) s2 += (p[k] - q[k]) * (p[k] - q[k]);
+    return s2;
+  };
+  // Row test: the share of the label's rows (with pixels within kRowPx columns on both sides of the
+  // boundary at box column i) whose left pixels' chromaticity is nearer the left window's than the right
+  // window's, and whose right pixels' is nearer the right window's. A seam between two obstacles runs
+  // down the whole box; a step of the column means made by blobs of one multi-coloured surface (camouflage)
+  // does not hold row by row.
+  constexpr int kRowPx = 3;
+  auto rows_agree = [&](int c, std::size_t /*o*/, std::size_t i, const Sums& lw, const Sums& rw) {
+    std::int64_t ql[3], qr[3];
+    chroma(lw, ql);
+    chroma(rw, qr);
+    const int xb = x0[std::size_t(c)] + int(i);  // first column right of the boundary
+    int rows = 0, agree = 0;
+    for (int y = y0[std::size_t(c)]; y <= y1[std::size_t(c)]; ++y) {
+      const std::int32_t* l = labels.row(y);
+      const Rgb8* px = rgb.row(y);
+      Sums sl, sr;
+      for (int x = std::max(0, xb - kRowPx); x < xb; ++x)
+        if (l[x] == c) ++sl.n, sl.r += px[x].r, sl.g += px[x].g, sl.b += px[x].b;
+      for (int x = xb; x < std::min(w, xb + kRowPx); ++x)
+        if (l[x] == c) ++sr.n, sr.r += px[x].r, sr.g += px[x].g, sr.b += px[x].b;
+      if (sl.n == 0 || sr.n == 0) continue;
+      ++rows;
+      std::int64_t a[3], b[3];
+      chroma(sl, a);
+      chroma(sr, b);
+      agree += dist2(a, ql) < dist2(a, qr) && dist2(b, qr) < dist2(b, ql);
+    }
+    return rows > 0 ? double(agree) / double(rows) : 0.0;
+  };
+  std::vector<std::uint8_t> starts(cols.size(), 0);  // 1: a new piece of its label starts at this column
+  bool any = false;
+  for (int c = 1; c <= count; ++c) {
+    const std::size_t o = off[std::size_t(c)], nc = off[std::size_t(c) + 1] - o;
+    if (nc < 2 * std::size_t(std::max(1, min_width))) continue;
+    std::vector<Sums> pre(nc + 1);  // sums of columns [0, i)
+    for (std::size_t i = 0; i < nc; ++i) {
+      const Sums& s = cols[o + i];
+      pre[i + 1] = {pre[i].n + s.n, pre[i].r + s.r, pre[i].g + s.g, pre[i].b + s.b};
+    }
+    auto range = [&](std::size_t a, std::size_t b) {
+      return Sums{pre[b].n - pre[a].n, pre[b].r - pre[a].r, pre[b].g - pre[a].g, pre[b].b - pre[a].b};
+    };
+    // Breadth first over the parts: the whole label, then the two sides of each cut.
+    std::vector<std::array<std::size_t, 2>> parts{{0, nc}};
+    int cuts = 0;
+    for (std::size_t k = 0; k < parts.size() && cuts < max_cuts; ++k) {
+      const std::size_t a = parts[k][0], b = parts[k][1];
+      const std::size_t mw = std::size_t(std::max(1, min_width));
+      if (b - a < 2 * mw) continue;
+      // Candidate boundaries at or above the threshold, strongest first (ties: the leftmost); the first
+      // that passes the row test is cut.
+      std::vector<std::pair<std::int64_t, std::size_t>> cand;
+      for (std::size_t i = a + mw; i + mw <= b; ++i) {
+        if (range(a, i).n < min_px || range(i, b).n < min_px) continue;
+        const Sums left = range(i - std::min(i - a, std::size_t(window)), i);
+        const Sums right = range(i, std::min(b, i + std::size_t(window)));
+        if (left.n == 0 || right.n == 0) continue;
+        const std::int64_t step = chroma_step(left, right);
+        if (step >= threshold) cand.push_back({-step, i});
+      }
+      std::sort(cand.begin(), cand.end());
+      std::size_t best_i = 0;
+      bool found = false;
+      for (const auto& [neg_step, i] : cand) {
+        const Sums left = range(i - std::min(i - a, std::size_t(window)), i);
+        const Sums right = range(i, std::min(b, i + std::size_t(window)));
+        if (min_rows <= 0 || rows_agree(c, o, i, left, right) >= min_rows) {
+          best_i = i;
+          found = true;
+          break;
+        }
+      }
+      if (!found) continue;
+      starts[o + best_i] = 1;
+      any = true;
+      ++cuts;
+      parts.push_back({a, best_i});
+      parts.push_back({best_i, b});
+    }
+  }
+  if (!any) {
+    if (out_count) *out_count = count;
+    return labels;
+  }
+  // Key per (label, column): 1 + the column index (in cols) where its piece starts.
+  std::vector<std::int32_t> key(cols.size(), 0);
+  for (int c = 1; c <= count; ++c) {
+    const std::size_t o = off[std::size_t(c)], nc = off[std::size_t(c) + 1] - o;
+    std::int32_t k = std::int32_t(o) + 1;
+    for (std::size_t i = 0; i < nc; ++i) {
+      if (starts[o + i]) k = std::int32_t(o + i) + 1;
+      key[o + i] = k;
+    }
+  }
+  std::vector<int> renum(cols.size() + 2, 0);
+  int m = 0;
+  ImageI32 out(w, h, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = labels.row(y);
+    std::int32_t* d = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int c = l[x];
+      if (c <= 0 || c > count) continue;
+      int& r = renum[std::size_t(key[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])])];
       if (r == 0) r = ++m;
       d[x] = r;
     }
