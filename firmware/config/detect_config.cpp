@@ -90,6 +90,7 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.seam_min_px = v.integer("detect.seam_min_px");
   p.seam_max_cuts = v.integer("detect.seam_max_cuts");
   p.seam_min_rows = v.num("detect.seam_min_rows");
+  p.seam_drop_share = v.num("detect.seam_drop_share");
   p.min_area_m2 = v.num("detect.min_area_m2");
   p.merge_gap_px = v.integer("detect.merge_gap_px");
   p.merge_gap_vertical_px = v.integer("detect.merge_gap_vertical_px");

@@ -337,3 +337,103 @@ def test_split_necks_cuts_a_strip_at_the_feet():
     tail[10:54, 70:100] = 0
     tail[54:60, 70:100] = 1
     assert refdet.split_necks(tail, 1, 12, 0.3, 100)[1] == 1
+
+
+def _seam_scene(paint):
+    # The scenes of the C++ tests DetectScene.TwoTouchingObstaclesOfDifferentColourAreCutAtTheSeam and
+    # DetectScene.ColourBlobsOfOneSurfaceAreNotASeam: one label over columns 10-69, rows 10-59.
+    lab = np.zeros((70, 120), np.int32)
+    rgb = np.zeros((70, 120, 3), np.uint8)
+    lab[10:60, 10:70] = 1
+    for y in range(10, 60):
+        for x in range(10, 70):
+            rgb[y, x] = paint(x, y)
+    return lab, rgb
+
+
+RED, BLUE = (200, 40, 40), (40, 40, 200)
+
+
+def test_split_seams_cuts_two_touching_obstacles_of_different_colour():
+    lab, rgb = _seam_scene(lambda x, y: RED if x < 40 else BLUE)
+    s, n = refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7)
+    assert n == 2 and s[30, 39] == 1 and s[30, 40] == 2 and s[59, 10] == 1 and s[10, 69] == 2
+    for step, width, px in [(0.0, 14, 300), (0.6, 14, 300), (0.08, 31, 300), (0.08, 14, 1501)]:
+        s2, n2 = refdet.split_seams(lab, 1, rgb, step, 8, width, px, 2, 0.7)
+        assert n2 == 1 and np.array_equal(s2, lab), step
+    assert refdet.split_seams(lab, 1, None, 0.08, 8, 14, 300, 2, 0.7)[1] == 1
+    lab, rgb = _seam_scene(lambda x, y: RED if x < 24 else BLUE)
+    s, n = refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7)
+    assert n == 2 and s[30, 23] == 1
+    s, n = refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7, 0.25)
+    assert n == 1 and s[30, 23] == 0 and s[30, 24] == 1
+
+
+def test_split_seams_leaves_colour_blobs_of_one_surface_whole():
+    lab, rgb = _seam_scene(lambda x, y: RED if x < (50 if y < 35 else 30) else BLUE)
+    s, n = refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7)
+    assert n == 1 and np.array_equal(s, lab)
+    s, n = refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.0)
+    assert n == 3 and s[12, 29] == 1 and s[12, 30] == 2 and s[12, 49] == 2 and s[12, 50] == 3
+    assert refdet.split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 1, 0.0)[0][12, 50] == 2
+
+
+TWO_BOXES = """seed = 7
+type = "clear"
+[camera]
+width = 320
+height = 180
+focal_px = 210.0
+baseline_m = 0.12
+height_m = 0.40
+pitch_deg = 5.0
+[sky]
+kind = "clear"
+[ground]
+texture = "asphalt"
+[[obstacles]]
+shape = "box"
+x_m = 4.0
+y_m = 0.35
+length_m = 0.5
+width_m = 0.7
+height_m = 0.9
+texture = "noise"
+color = [200, 60, 50]
+[[obstacles]]
+shape = "box"
+x_m = 4.0
+y_m = -0.35
+length_m = 0.5
+width_m = 0.7
+height_m = 0.9
+texture = "noise"
+color = [50, 70, 200]
+"""
+
+
+@pytest.mark.firmware
+def test_seams_split_touching_boxes_in_firmware_and_reference(firmware_bin, tmp_path):
+    # Two boxes side by side at one depth (a red and a blue one, touching): one obstacle with the ground-truth
+    # disparity and the defaults (seams off); two with [detect] seam_min_step = 0.08, in the firmware and in
+    # the float reference alike (`fuzzyctl compare` on the dump).
+    (tmp_path / "scene.toml").write_text(TWO_BOXES)
+    r = subprocess.run([str(firmware_bin), "sim", "render", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "r")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    default = Path(__file__).resolve().parents[2] / "common/config/default.toml"
+    text = default.read_text()
+    assert "seam_min_step = 0.0\n" in text
+    (tmp_path / "on.toml").write_text(text.replace("seam_min_step = 0.0\n", "seam_min_step = 0.08\n"))
+    counts = {}
+    for name, cfg in (("off", default), ("on", tmp_path / "on.toml")):
+        out = tmp_path / name
+        r = subprocess.run([str(firmware_bin), "detect", "--left", str(tmp_path / "r/left.png"), "--disparity",
+                            str(tmp_path / "r/disp_gt.png"), "--calib", str(tmp_path / "r/calib_cam_to_cam.txt"),
+                            "--config", str(cfg), "--out", str(out), "--dump"], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        obs = json.loads((out / "obstacles.json").read_text())["obstacles"]
+        counts[name] = len(obs)
+        c = compare_detect(out)
+        assert not c.failures(), [(m.name, m.value) for m, _ in c.failures()]
+    assert counts == {"off": 1, "on": 2}

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <tuple>
 
 #include "config.hpp"
 #include "detect_config.hpp"
@@ -580,6 +581,67 @@ TEST(DetectScene, TwoObstaclesJoinedAtTheirFeetAreCutAtTheNeck) {
   s = detect::split_necks(two, 2, 12, 0.3, 100, 0.0, &n);
   ASSERT_EQ(n, 3);
   EXPECT_EQ(s.at(2, 65), 3);
+}
+
+// Seams (session 33): one label over columns 10-69, rows 10-59 (3000 px); `paint` colours each pixel.
+template <class F>
+void seam_scene(ImageI32& lab, ImageRgb8& rgb, F paint) {
+  lab = ImageI32(120, 70, 0);
+  rgb = ImageRgb8(120, 70, Rgb8{0, 0, 0});
+  for (int y = 10; y < 60; ++y)
+    for (int x = 10; x < 70; ++x) {
+      lab.at(x, y) = 1;
+      rgb.at(x, y) = paint(x, y);
+    }
+}
+constexpr Rgb8 kRed{200, 40, 40}, kBlue{40, 40, 200};
+
+TEST(DetectScene, TwoTouchingObstaclesOfDifferentColourAreCutAtTheSeam) {
+  ImageI32 lab;
+  ImageRgb8 rgb;
+  // Red columns 10-39, blue 40-69: the chromaticity step (0.516 in r and b) is largest at column 40.
+  seam_scene(lab, rgb, [](int x, int) { return x < 40 ? kRed : kBlue; });
+  int n = 0;
+  ImageI32 s = detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7, 0.0, &n);
+  ASSERT_EQ(n, 2);
+  EXPECT_EQ(s.at(39, 30), 1);
+  EXPECT_EQ(s.at(40, 30), 2);
+  EXPECT_EQ(s.at(10, 59), 1);
+  EXPECT_EQ(s.at(69, 10), 2);
+  // Off, a threshold above the step, too few pixels or columns on a side, or no colour: unchanged.
+  for (const auto& [step, width, px] : {std::tuple{0.0, 14, 300}, {0.6, 14, 300}, {0.08, 31, 300}, {0.08, 14, 1501}}) {
+    EXPECT_EQ(detect::split_seams(lab, 1, rgb, step, 8, width, px, 2, 0.7, 0.0, &n).data, lab.data) << step;
+    EXPECT_EQ(n, 1);
+  }
+  EXPECT_EQ(detect::split_seams(lab, 1, ImageRgb8(), 0.08, 8, 14, 300, 2, 0.7, 0.0, &n).data, lab.data);
+  // A sliver: red columns 10-23 (700 px, 23 % of the label) are cut off, and dropped with drop_share 0.25.
+  seam_scene(lab, rgb, [](int x, int) { return x < 24 ? kRed : kBlue; });
+  s = detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7, 0.0, &n);
+  EXPECT_EQ(n, 2);
+  EXPECT_EQ(s.at(23, 30), 1);
+  s = detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7, 0.25, &n);
+  ASSERT_EQ(n, 1);
+  EXPECT_EQ(s.at(23, 30), 0);
+  EXPECT_EQ(s.at(24, 30), 1);
+}
+
+TEST(DetectScene, ColourBlobsOfOneSurfaceAreNotASeam) {
+  // Camouflage-like: rows 10-34 red in columns 10-49, rows 35-59 red in columns 10-29, blue elsewhere.
+  // The column means step at columns 30 and 50 (0.258 each), but only half the rows change colour there.
+  ImageI32 lab;
+  ImageRgb8 rgb;
+  seam_scene(lab, rgb, [](int x, int y) { return x < (y < 35 ? 50 : 30) ? kRed : kBlue; });
+  int n = 0;
+  EXPECT_EQ(detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.7, 0.0, &n).data, lab.data);
+  EXPECT_EQ(n, 1);
+  // Without the row test the two steps are cut, the left one first (a tie), then the right one.
+  const ImageI32 s = detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 2, 0.0, 0.0, &n);
+  ASSERT_EQ(n, 3);
+  EXPECT_EQ(s.at(29, 12), 1);
+  EXPECT_EQ(s.at(30, 12), 2);
+  EXPECT_EQ(s.at(49, 12), 2);
+  EXPECT_EQ(s.at(50, 12), 3);
+  EXPECT_EQ(detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 1, 0.0, 0.0, &n).at(50, 12), 2);  // one cut only
 }
 
 }  // namespace

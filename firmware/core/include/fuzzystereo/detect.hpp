@@ -114,6 +114,8 @@ struct DetectParams {
   int seam_min_px = 300;           // ... and at least this many pixels
   int seam_max_cuts = 2;           // ... at most this many cuts per obstacle
   double seam_min_rows = 0.7;      // ... and at least this share of its rows agree with the cut (0 = no row test)
+  double seam_drop_share = 0.0;    // a cut piece with fewer than this share of the obstacle's pixels is dropped
+                                   // (background the matcher attached to its side; 0 = every piece kept)
   double merge_edge_rel_disparity = 0.05;  // side-by-side groups whose facing edges' disparities differ <= this
                                        // share join (a slanted surface cut by k-means; 0 = off)
   int merge_edge_columns = 4;      // ... the edge = this many outermost columns of each group [px]
@@ -330,11 +332,12 @@ ImageI32 split_necks(const ImageI32& components, int count, int min_width, doubl
 // label's rows with pixels within 3 columns on both sides of the boundary, at least the share min_rows
 // have their left pixels' chromaticity nearer the left window's than the right's and their right
 // pixels' nearer the right window's (a seam runs down the whole box; blobs of one camouflaged
-// surface do not). Every cut part becomes one label (its
+// surface do not). drop_share > 0: a piece with fewer than that share of its label's pixels is dropped
+// (a sliver of background attached to the obstacle's side by the matcher). Every cut part becomes one label (its
 // pixels need not be connected), other labels are kept whole; labels renumbered in raster order of
 // first appearance. min_step <= 0, an empty rgb or no cut: unchanged (and *out_count = count).
 ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, double min_step, int window,
-                     int min_width, int min_px, int max_cuts, double min_rows, int* out_count);
+                     int min_width, int min_px, int max_cuts, double min_rows, double drop_share, int* out_count);
 
 // Box, size, median disparity, Z, X and class per component (components >= min area), nearest
 // first; fills `labels` (0 none, id+1).

@@ -136,7 +136,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   if (p.seam_min_step > 0 && !rgb.empty()) {
     int ns = 0;
     const ImageI32 cut = detect::split_seams(r.obstacle_labels, int(r.obstacles.size()), rgb, p.seam_min_step,
-                                             p.seam_window_px, p.seam_min_width_px, p.seam_min_px, p.seam_max_cuts, p.seam_min_rows, &ns);
+                                             p.seam_window_px, p.seam_min_width_px, p.seam_min_px, p.seam_max_cuts, p.seam_min_rows,
+                                             p.seam_drop_share, &ns);
     if (ns != int(r.obstacles.size())) {
       DetectParams pm = p;  // the parts stay apart (as after a neck cut)
       pm.merge_gap_px = 0;

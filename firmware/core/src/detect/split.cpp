@@ -272,7 +272,7 @@ ImageI32 split_necks(const ImageI32& components, int count, int min_width, doubl
 }
 
 ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, double min_step, int window,
-                     int min_width, int min_px, int max_cuts, double min_rows, int* out_count) {
+                     int min_width, int min_px, int max_cuts, double min_rows, double drop_share, int* out_count) {
   const int w = labels.width, h = labels.height;
   if (min_step <= 0 || count <= 0 || max_cuts <= 0 || window <= 0 || rgb.width != w || rgb.height != h || rgb.empty()) {
     if (out_count) *out_count = count;
@@ -420,6 +420,19 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
       key[o + i] = k;
     }
   }
+  // Pieces of a cut label with fewer than drop_share of its pixels are dropped: a sliver of background
+  // the matcher attached to the obstacle's side (it has the background's colour, not a neighbour's).
+  std::vector<std::uint8_t> drop(cols.size() + 2, 0);
+  if (drop_share > 0) {
+    std::vector<std::int64_t> piece_px(cols.size() + 2, 0);
+    for (int c = 1; c <= count; ++c) {
+      const std::size_t o = off[std::size_t(c)], nc = off[std::size_t(c) + 1] - o;
+      std::int64_t total = 0;
+      for (std::size_t i = 0; i < nc; ++i) piece_px[std::size_t(key[o + i])] += cols[o + i].n, total += cols[o + i].n;
+      for (std::size_t i = 0; i < nc; ++i)
+        drop[std::size_t(key[o + i])] = double(piece_px[std::size_t(key[o + i])]) < drop_share * double(total);
+    }
+  }
   std::vector<int> renum(cols.size() + 2, 0);
   int m = 0;
   ImageI32 out(w, h, 0);
@@ -429,7 +442,9 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
     for (int x = 0; x < w; ++x) {
       const int c = l[x];
       if (c <= 0 || c > count) continue;
-      int& r = renum[std::size_t(key[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])])];
+      const std::size_t k = std::size_t(key[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])]);
+      if (drop[k]) continue;
+      int& r = renum[k];
       if (r == 0) r = ++m;
       d[x] = r;
     }

@@ -982,6 +982,99 @@ def split_necks(comp: np.ndarray, n: int, min_width: int, max_share: float, min_
     return renumber_raster(key)
 
 
+def _chroma_q16(n: int, r: int, g: int, b: int) -> tuple[int, int, int]:
+    """Regularised chromaticity of pixel sums, Q16: (C + 10 n) << 16 // (R + G + B + 30 n) (as the firmware)."""
+    d = r + g + b + 30 * n
+    return (((r + 10 * n) << 16) // d, ((g + 10 * n) << 16) // d, ((b + 10 * n) << 16) // d)
+
+
+def split_seams(lab: np.ndarray, n: int, rgb: np.ndarray | None, min_step: float, window: int, min_width: int,
+                min_px: int, max_cuts: int, min_rows: float, drop_share: float = 0.0) -> tuple[np.ndarray, int]:
+    """Seams (docs/detection.md "(e) Seams", session 33): per label, the R, G, B sums of each column of its box;
+    at each boundary the regularised chromaticity of the label's pixels in `window` columns each side (Q16
+    integers, exactly as the firmware); the largest channel step >= min_step, >= min_width columns and
+    >= min_px pixels each side and (min_rows > 0) >= min_rows of the rows agreeing (their 3 pixels left of the
+    boundary nearer the left window's chromaticity, their 3 right pixels nearer the right's) cuts the label
+    there, strongest candidate first (ties: leftmost), breadth first over the parts, <= max_cuts per label.
+    Pieces with < drop_share of the label's pixels are dropped; labels renumbered in raster order."""
+    if min_step <= 0 or n <= 0 or max_cuts <= 0 or window <= 0 or rgb is None or rgb.shape[:2] != lab.shape:
+        return lab, n
+    h, w = lab.shape
+    threshold = int(np.floor(min_step * 65536.0 + 0.5))
+    rgb64 = rgb.astype(np.int64)
+    key = np.zeros(lab.shape, np.int64)
+    cut_any = False
+    stride = w + 2
+    for c in range(1, n + 1):
+        sel = lab == c
+        ys, xs = np.nonzero(sel)
+        if len(xs) == 0:
+            continue
+        x0, x1, y0, y1 = int(xs.min()), int(xs.max()), int(ys.min()), int(ys.max())
+        nc = x1 - x0 + 1
+        cols = np.zeros((nc, 4), np.int64)  # n, r, g, b per column
+        np.add.at(cols[:, 0], xs - x0, 1)
+        for k in range(3):
+            np.add.at(cols[:, k + 1], xs - x0, rgb64[ys, xs, k])
+        pre = np.vstack([np.zeros((1, 4), np.int64), np.cumsum(cols, axis=0)])
+        rng = lambda a, b: [int(v) for v in pre[b] - pre[a]]  # noqa: E731
+        starts = np.zeros(nc, bool)
+        mw = max(1, min_width)
+
+        def rows_agree(i: int, lw: list[int], rw: list[int]) -> float:
+            ql, qr = _chroma_q16(*lw), _chroma_q16(*rw)
+            d2 = lambda p, q: sum((a - b) ** 2 for a, b in zip(p, q))  # noqa: E731
+            xb = x0 + i
+            rows = agree = 0
+            for y in range(y0, y1 + 1):
+                lsel = [x for x in range(max(0, xb - 3), xb) if lab[y, x] == c]
+                rsel = [x for x in range(xb, min(w, xb + 3)) if lab[y, x] == c]
+                if not lsel or not rsel:
+                    continue
+                rows += 1
+                a = _chroma_q16(len(lsel), *[int(rgb64[y, lsel, k].sum()) for k in range(3)])
+                b = _chroma_q16(len(rsel), *[int(rgb64[y, rsel, k].sum()) for k in range(3)])
+                agree += int(d2(a, ql) < d2(a, qr) and d2(b, qr) < d2(b, ql))
+            return agree / rows if rows else 0.0
+
+        parts, cuts, k = [(0, nc)], 0, 0
+        if nc >= 2 * mw:
+            while k < len(parts) and cuts < max_cuts:
+                a, b = parts[k]
+                k += 1
+                if b - a < 2 * mw:
+                    continue
+                cand = []
+                for i in range(a + mw, b - mw + 1):
+                    if rng(a, i)[0] < min_px or rng(i, b)[0] < min_px:
+                        continue
+                    lw, rw = rng(i - min(i - a, window), i), rng(i, min(b, i + window))
+                    if lw[0] == 0 or rw[0] == 0:
+                        continue
+                    step = max(abs(p - q) for p, q in zip(_chroma_q16(*lw), _chroma_q16(*rw)))
+                    if step >= threshold:
+                        cand.append((-step, i))
+                for _, i in sorted(cand):
+                    lw, rw = rng(i - min(i - a, window), i), rng(i, min(b, i + window))
+                    if min_rows <= 0 or rows_agree(i, lw, rw) >= min_rows:
+                        starts[i] = True
+                        cut_any = True
+                        cuts += 1
+                        parts += [(a, i), (i, b)]
+                        break
+        piece = np.maximum.accumulate(np.where(starts, np.arange(nc), 0))  # start column of each column's piece
+        kk = c * stride + piece[xs - x0] + 1
+        if drop_share > 0:
+            total = len(xs)
+            vals, counts = np.unique(kk, return_counts=True)
+            small = vals[counts < drop_share * total]
+            kk = np.where(np.isin(kk, small), 0, kk)
+        key[ys, xs] = kk
+    if not cut_any:
+        return lab, n
+    return renumber_raster(key)
+
+
 def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParams) -> DetectReferenceResult:
     """disp: float disparity [px], NaN = none. rgb: HxWx3 uint8 R G B, or None (mono camera).
     calib: focal_px, baseline_m, cx, cy; height_m and pitch_deg (optional) for the road slope prior."""
@@ -1022,6 +1115,14 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
                               float(getattr(p, "neck_foot_share", 0.0)))
         if not np.array_equal(cut, ol):
             out, ol = measure_obstacles(cut, nn, disp, calib, DetectParams({**p.values, "merge_gap_px": 0,
+                                                                            "merge_edge_rel_disparity": 0.0,
+                                                                            "contain_min_inside": 0.0}))
+    if float(getattr(p, "seam_min_step", 0.0)) > 0 and rgb is not None:  # docs/detection.md "(e) Seams" (session 33)
+        cut, ns = split_seams(ol, len(out), rgb, float(p.seam_min_step), int(p.seam_window_px),
+                              int(p.seam_min_width_px), int(p.seam_min_px), int(p.seam_max_cuts),
+                              float(p.seam_min_rows), float(getattr(p, "seam_drop_share", 0.0)))
+        if ns != len(out):
+            out, ol = measure_obstacles(cut, ns, disp, calib, DetectParams({**p.values, "merge_gap_px": 0,
                                                                             "merge_edge_rel_disparity": 0.0,
                                                                             "contain_min_inside": 0.0}))
     if found:
