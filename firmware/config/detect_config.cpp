@@ -76,6 +76,10 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.inside_drop_min_share = v.num("detect.inside_drop_min_share");
   p.inside_drop_min_ring = v.num("detect.inside_drop_min_ring");
   p.inside_drop_ring_px = v.integer("detect.inside_drop_ring_px");
+  p.side_face_max_rel = v.num("detect.side_face_max_rel");
+  p.side_face_max_width = v.num("detect.side_face_max_width");
+  p.side_face_min_rows = v.num("detect.side_face_min_rows");
+  p.side_face_max_gap_px = v.integer("detect.side_face_max_gap_px");
   p.split_min_rel = v.num("detect.split_min_rel");
   p.split_max_valley = v.num("detect.split_max_valley");
   p.split_min_px = v.integer("detect.split_min_px");

@@ -152,6 +152,12 @@ struct DetectParams {
   double inside_drop_min_ring = 0.25;  // ... and whose surrounding band holds at least this share of the nearer
                                    // one's pixels is dropped (a blob of background disparity in its face)
   int inside_drop_ring_px = 6;     // ... the band: this many pixels around the farther obstacle's box [px]
+  double side_face_max_rel = 0.0;  // a narrow obstacle beside a larger one and at most this share farther (Z ratio - 1)
+                                   // is its side face: it joins it (session 33; 0 = off)
+  double side_face_max_width = 0.5;  // ... narrow: its box at most this share of the larger one's width
+  double side_face_min_rows = 0.8;   // ... at least this share of its box rows lie within the larger one's rows
+  int side_face_max_gap_px = 2;    // ... and the boxes touch: at most this many columns apart (overlaps allowed, its
+                                   // centre column outside the larger box) [px]
   int min_area_px = 200;           // smaller components are dropped
   double min_area_m2 = 0.025;      // obstacles whose pixels cover less than this (pixels * (Z/f)^2) are dropped (0 = off)
   double min_height_m = 0.15;       // obstacles lower than this (box rows * Z / f) are dropped (0 = off)
@@ -389,6 +395,16 @@ void drop_seen_through(std::vector<Obstacle>& obstacles, ImageI32& labels, const
 // the image) holds >= inside_drop_min_ring of H's pixels (labels == H.id + 1). Decided on the obstacles as they
 // are (no chains); the rest keep their order and are renumbered (ids, labels). Share <= 0: unchanged.
 void drop_inside_nearer(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
+
+// Side faces (docs/detection.md "(e) Side faces", session 33): a box seen at an angle shows its front face and a
+// receding side face; the side face, farther and split off by depth, is a narrow obstacle F beside the front
+// face H. F joins H when H has more pixels, F is farther by at most side_face_max_rel (Z_F / Z_H - 1 in
+// (0, rel], from the median Q4 disparities), F's box is at most side_face_max_width of H's width, >=
+// side_face_min_rows of F's box rows lie within H's rows, the boxes are at most side_face_max_gap_px columns
+// apart (or overlap) and F's centre column lies outside H's box. H (the largest such host) takes the union of
+// the boxes and F's pixels (labels), keeps its distance (the nearer face); decided on the obstacles as they are
+// (no chains); the rest are renumbered (ids, labels). side_face_max_rel <= 0: unchanged.
+void merge_side_faces(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p);
 
 }  // namespace detect
 

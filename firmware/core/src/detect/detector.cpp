@@ -155,6 +155,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   detect::extend_to_ground(r.obstacles, r.road_line_q4, p);
   // Inside a nearer face (session 14): a farther blob whose box lies in a larger nearer obstacle's box.
   detect::drop_inside_nearer(r.obstacles, r.obstacle_labels, p);
+  // Side faces (session 33): the receding side of a box seen at an angle joins its front face.
+  detect::merge_side_faces(r.obstacles, r.obstacle_labels, p);
   // Ground contact over a gap (session 14): the lower part the matcher lost, where nothing nearer hides it.
   detect::extend_over_gap(r.obstacles, r.obstacle_labels, r.road_line_q4, p);
   lap(DetectStage::Objects);

@@ -113,4 +113,43 @@ void drop_inside_nearer(std::vector<Obstacle>& obstacles, ImageI32& labels, cons
   drop_obstacles(obstacles, labels, drop);
 }
 
+void merge_side_faces(std::vector<Obstacle>& obstacles, ImageI32& labels, const DetectParams& p) {
+  if (p.side_face_max_rel <= 0 || obstacles.size() < 2) return;
+  const std::size_t n = obstacles.size();
+  std::vector<int> host(n, -1);
+  for (std::size_t f = 0; f < n; ++f) {
+    const Obstacle& F = obstacles[f];
+    for (std::size_t g = 0; g < n; ++g) {
+      const Obstacle& H = obstacles[g];
+      if (g == f || H.pixel_count <= F.pixel_count || F.disparity_q4 <= 0) continue;
+      if (host[f] >= 0 && H.pixel_count <= obstacles[std::size_t(host[f])].pixel_count) continue;
+      // Farther, by at most the share: d_H / d_F - 1 = Z_F / Z_H - 1 in (0, rel].
+      if (F.disparity_q4 >= H.disparity_q4 || double(H.disparity_q4) > double(F.disparity_q4) * (1.0 + p.side_face_max_rel))
+        continue;
+      const int fw = F.x1 - F.x0 + 1, hw = H.x1 - H.x0 + 1, fh = F.y1 - F.y0 + 1;
+      if (double(fw) > p.side_face_max_width * double(hw)) continue;
+      const int rows = std::min(F.y1, H.y1) - std::max(F.y0, H.y0) + 1;
+      if (double(rows) < p.side_face_min_rows * double(fh)) continue;
+      const int gap = std::max(F.x0, H.x0) - std::min(F.x1, H.x1) - 1;  // < 0: the boxes overlap
+      const int centre2 = F.x0 + F.x1;                                    // twice the centre column
+      if (gap > p.side_face_max_gap_px || (centre2 >= 2 * H.x0 && centre2 <= 2 * H.x1)) continue;
+      host[f] = int(g);
+    }
+  }
+  std::vector<bool> drop(n, false);
+  std::vector<std::int32_t> to(n + 1, 0);
+  for (std::size_t f = 0; f < n; ++f) {
+    if (host[f] < 0 || host[std::size_t(host[f])] >= 0) continue;  // no chains: a host is not itself a face
+    Obstacle& H = obstacles[std::size_t(host[f])];
+    const Obstacle& F = obstacles[f];
+    H.x0 = std::min(H.x0, F.x0), H.x1 = std::max(H.x1, F.x1), H.y0 = std::min(H.y0, F.y0), H.y1 = std::max(H.y1, F.y1);
+    H.pixel_count += F.pixel_count;
+    to[f + 1] = H.id + 1;
+    drop[f] = true;
+  }
+  for (std::int32_t& l : labels.data)
+    if (l > 0 && std::size_t(l) <= n && to[std::size_t(l)] > 0) l = to[std::size_t(l)];
+  drop_obstacles(obstacles, labels, drop);
+}
+
 }  // namespace fs::detect
