@@ -437,3 +437,24 @@ def test_seams_split_touching_boxes_in_firmware_and_reference(firmware_bin, tmp_
         c = compare_detect(out)
         assert not c.failures(), [(m.name, m.value) for m, _ in c.failures()]
     assert counts == {"off": 1, "on": 2}
+
+
+def test_side_face_of_a_box_joins_its_front_face():
+    # The cases of the C++ test DetectScene.TheSideFaceOfABoxJoinsItsFrontFace.
+    def run(fx0, fx1, f_px, **over):
+        ol = np.zeros((70, 80), np.int32)
+        ol[10:60, 10:50] = 1
+        strip = ol[12:59, fx0:fx1 + 1]
+        strip[strip == 0] = 2
+        obs = [refdet.Obstacle(0, (10, 10, 49, 59), 2000, 20.0, 2.0, 0.0, "mid"),
+               refdet.Obstacle(1, (fx0, 12, fx1, 58), 300, f_px, 2.5, 0.0, "mid")]
+        p = params(**{"side_face_max_rel": 0.35, "side_face_max_width": 0.2, "side_face_min_rows": 0.8,
+                      "side_face_max_gap_px": 2, **over})
+        return refdet.merge_side_faces(obs, ol, p), ol
+    out, ol = run(49, 54, 16.0)
+    assert len(out) == 1 and out[0].box == (10, 10, 54, 59) and out[0].pixel_count == 2300
+    assert out[0].disparity_px == 20.0 and ol[30, 52] == 1
+    assert len(run(51, 56, 16.0)[0]) == 1
+    for args in [(49, 54, 14.0), (49, 54, 22.0), (49, 57, 16.0), (53, 58, 16.0)]:
+        assert len(run(*args)[0]) == 2, args
+    assert len(run(49, 54, 16.0, side_face_max_rel=0.0)[0]) == 2

@@ -644,5 +644,57 @@ TEST(DetectScene, ColourBlobsOfOneSurfaceAreNotASeam) {
   EXPECT_EQ(detect::split_seams(lab, 1, rgb, 0.08, 8, 14, 300, 1, 0.0, 0.0, &n).at(50, 12), 2);  // one cut only
 }
 
+// Side faces (session 33): H = columns 10-49, rows 10-59 at 20 px (2000 px); F = a strip beside it.
+TEST(DetectScene, TheSideFaceOfABoxJoinsItsFrontFace) {
+  auto run = [](int fx0, int fx1, int f_px, int& n_out, ImageI32* labels_out = nullptr) {
+    ImageI32 labels(80, 70, 0);
+    for (int y = 10; y < 60; ++y)
+      for (int x = 10; x < 50; ++x) labels.at(x, y) = 1;
+    for (int y = 12; y < 59; ++y)
+      for (int x = fx0; x <= fx1; ++x)
+        if (labels.at(x, y) == 0) labels.at(x, y) = 2;
+    std::vector<Obstacle> obs(2);
+    obs[0] = {0, 10, 10, 49, 59, 2000, 20 * kDispScale, 2.0, 0.0, ObstacleClass::Mid};
+    obs[1] = {1, fx0, 12, fx1, 58, 300, f_px, 2.5, 0.0, ObstacleClass::Mid};
+    DetectParams p;
+    p.side_face_max_rel = 0.35;
+    p.side_face_max_width = 0.2;
+    p.side_face_min_rows = 0.8;
+    p.side_face_max_gap_px = 2;
+    detect::merge_side_faces(obs, labels, p);
+    n_out = int(obs.size());
+    if (labels_out) *labels_out = labels;
+    return obs;
+  };
+  int n = 0;
+  ImageI32 lab;
+  // 16 px: 1.25x farther, 6 columns (0.15 of 40), overlapping one column, centre outside H: joins.
+  std::vector<Obstacle> o = run(49, 54, 16 * kDispScale, n, &lab);
+  ASSERT_EQ(n, 1);
+  EXPECT_EQ(o[0].x1, 54);
+  EXPECT_EQ(o[0].x0, 10);
+  EXPECT_EQ(o[0].pixel_count, 2300);
+  EXPECT_EQ(o[0].disparity_q4, 20 * kDispScale);  // the nearer face's distance
+  EXPECT_EQ(lab.at(52, 30), 1);
+  run(51, 56, 16 * kDispScale, n);  // one column apart (gap 1 <= 2): joins
+  EXPECT_EQ(n, 1);
+  // Too far behind (20 / 14 = 1.43x), nearer (22 px), too wide (9 columns > 8), too far apart (gap 3): kept apart.
+  run(49, 54, 14 * kDispScale, n);
+  EXPECT_EQ(n, 2);
+  run(49, 54, 22 * kDispScale, n);
+  EXPECT_EQ(n, 2);
+  run(49, 57, 16 * kDispScale, n);
+  EXPECT_EQ(n, 2);
+  run(53, 58, 16 * kDispScale, n);
+  EXPECT_EQ(n, 2);
+  // Off: unchanged.
+  ImageI32 labels(80, 70, 0);
+  std::vector<Obstacle> two(2);
+  two[0] = {0, 10, 10, 49, 59, 2000, 20 * kDispScale, 2.0, 0.0, ObstacleClass::Mid};
+  two[1] = {1, 49, 12, 54, 58, 300, 16 * kDispScale, 2.5, 0.0, ObstacleClass::Mid};
+  detect::merge_side_faces(two, labels, DetectParams{});
+  EXPECT_EQ(two.size(), 2u);
+}
+
 }  // namespace
 }  // namespace fs

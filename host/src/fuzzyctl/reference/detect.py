@@ -864,6 +864,53 @@ def drop_inside_nearer(obstacles: list, ol: np.ndarray, p: DetectParams) -> list
     return _keep_renumbered(obstacles, ol, lambda o: o.id not in drop)
 
 
+def merge_side_faces(obstacles: list, ol: np.ndarray, p: DetectParams) -> list:
+    """Side faces (docs/detection.md "(e) Side faces", session 33): a narrow obstacle F (box width <=
+    side_face_max_width of H's) beside a larger one H (more pixels), farther by at most side_face_max_rel
+    (d_H <= d_F * (1 + rel), d_F < d_H), >= side_face_min_rows of F's box rows within H's rows, the boxes at most
+    side_face_max_gap_px columns apart (overlaps allowed) and F's centre column outside H's box, joins H (the host
+    with the most pixels): H takes the union of the boxes, F's pixels and labels and keeps its distance. No chains
+    (a host that is itself a face keeps its faces apart); the rest are renumbered (ids, ol)."""
+    rel = float(getattr(p, "side_face_max_rel", 0.0))
+    if rel <= 0 or len(obstacles) < 2:
+        return obstacles
+    width = float(p.side_face_max_width)
+    rows_share = float(p.side_face_min_rows)
+    max_gap = int(p.side_face_max_gap_px)
+    host = {}
+    for f in obstacles:
+        fx0, fy0, fx1, fy1 = f.box
+        best = None
+        for g in obstacles:
+            if g.id == f.id or g.pixel_count <= f.pixel_count or f.disparity_px <= 0:
+                continue
+            if best is not None and g.pixel_count <= best.pixel_count:
+                continue
+            if f.disparity_px >= g.disparity_px or g.disparity_px > f.disparity_px * (1.0 + rel) + 1e-9:
+                continue
+            gx0, gy0, gx1, gy1 = g.box
+            if fx1 - fx0 + 1 > width * (gx1 - gx0 + 1) + 1e-9:
+                continue
+            if min(fy1, gy1) - max(fy0, gy0) + 1 < rows_share * (fy1 - fy0 + 1) - 1e-9:
+                continue
+            gap = max(fx0, gx0) - min(fx1, gx1) - 1
+            if gap > max_gap or 2 * gx0 <= fx0 + fx1 <= 2 * gx1:
+                continue
+            best = g
+        if best is not None:
+            host[f.id] = best
+    joined = set()
+    for fid, g in host.items():
+        if g.id in host:
+            continue  # no chains
+        f = obstacles[fid]
+        g.box = (min(g.box[0], f.box[0]), min(g.box[1], f.box[1]), max(g.box[2], f.box[2]), max(g.box[3], f.box[3]))
+        g.pixel_count += f.pixel_count
+        ol[ol == fid + 1] = g.id + 1
+        joined.add(fid)
+    return _keep_renumbered(obstacles, ol, lambda o: o.id not in joined)
+
+
 def extend_over_gap(obstacles: list, ol: np.ndarray, a: float, b: float, horizon: int, h: int, p: DetectParams) -> None:
     """Ground contact over a gap (docs/detection.md "(e) Box extent", session 14): a box whose bottom lies above
     its foot row (the last row from its bottom on whose road line a*v + b is still below the obstacle's disparity;
@@ -1132,6 +1179,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
     if found:
         extend_to_ground(out, a, b, horizon, h, p)
     out = drop_inside_nearer(out, ol, p)  # docs/detection.md "(e) Inside a nearer face"
+    out = merge_side_faces(out, ol, p)  # docs/detection.md "(e) Side faces" (session 33)
     if found:
         extend_over_gap(out, ol, a, b, horizon, h, p)  # docs/detection.md "(e) Box extent"
     return DetectReferenceResult(bins, vd, found, a, b, horizon, road_raw, road, skipped, rows, sky,
