@@ -692,7 +692,9 @@ TEST(DetectScene, TheSideFaceOfABoxJoinsItsFrontFace) {
   std::vector<Obstacle> two(2);
   two[0] = {0, 10, 10, 49, 59, 2000, 20 * kDispScale, 2.0, 0.0, ObstacleClass::Mid};
   two[1] = {1, 49, 12, 54, 58, 300, 16 * kDispScale, 2.5, 0.0, ObstacleClass::Mid};
-  detect::merge_side_faces(two, labels, DetectParams{});
+  DetectParams off;
+  off.side_face_max_rel = 0.0;
+  detect::merge_side_faces(two, labels, off);
   EXPECT_EQ(two.size(), 2u);
 }
 
