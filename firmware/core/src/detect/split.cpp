@@ -72,6 +72,33 @@ ImageI32 relabel_keys(const ImageI32& keys, int* out_count) {
   *out_count = m;
   return tmp;
 }
+
+// Relabels by keys per (label, column of its box): a pixel of label c in column x gets
+// key[off[c] + x - x0[c]] (0 = the pixel is dropped); the keys are renumbered 1.. in raster order of
+// their first pixel. Keys lie in [0, nkeys). Shared by split_necks and split_seams.
+ImageI32 renumber_column_keys(const ImageI32& labels, int count, const std::vector<std::size_t>& off,
+                              const std::vector<int>& x0, const std::vector<std::int32_t>& key, std::size_t nkeys,
+                              int* out_count) {
+  const int w = labels.width, h = labels.height;
+  std::vector<int> renum(nkeys, 0);
+  int m = 0;
+  ImageI32 out(w, h, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::int32_t* l = labels.row(y);
+    std::int32_t* d = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int c = l[x];
+      if (c <= 0 || c > count) continue;
+      const std::int32_t k = key[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])];
+      if (k == 0) continue;
+      int& r = renum[std::size_t(k)];
+      if (r == 0) r = ++m;
+      d[x] = r;
+    }
+  }
+  if (out_count) *out_count = m;
+  return out;
+}
 }  // namespace
 
 int bimodal_threshold_q4(const std::vector<std::int32_t>& hist, int lo, int min_px, double min_rel, double max_valley) {
@@ -251,24 +278,7 @@ ImageI32 split_necks(const ImageI32& components, int count, int min_width, doubl
       piece[o + i] = key;
     }
   }
-  std::vector<int> renum(cols.size() + 2, 0);
-  int m = 0;
-  ImageI32 out(w, h, 0);
-  for (int y = 0; y < h; ++y) {
-    const std::int32_t* l = components.row(y);
-    std::int32_t* d = out.row(y);
-    for (int x = 0; x < w; ++x) {
-      const int c = l[x];
-      if (c == 0) continue;
-      const std::int32_t k = piece[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])];
-      if (k == 0) continue;
-      int& r = renum[std::size_t(k)];
-      if (r == 0) r = ++m;
-      d[x] = r;
-    }
-  }
-  if (out_count) *out_count = m;
-  return out;
+  return renumber_column_keys(components, count, off, x0, piece, cols.size() + 2, out_count);
 }
 
 ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, double min_step, int window,
@@ -433,24 +443,9 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
         drop[std::size_t(key[o + i])] = double(piece_px[std::size_t(key[o + i])]) < drop_share * double(total);
     }
   }
-  std::vector<int> renum(cols.size() + 2, 0);
-  int m = 0;
-  ImageI32 out(w, h, 0);
-  for (int y = 0; y < h; ++y) {
-    const std::int32_t* l = labels.row(y);
-    std::int32_t* d = out.row(y);
-    for (int x = 0; x < w; ++x) {
-      const int c = l[x];
-      if (c <= 0 || c > count) continue;
-      const std::size_t k = std::size_t(key[off[std::size_t(c)] + std::size_t(x - x0[std::size_t(c)])]);
-      if (drop[k]) continue;
-      int& r = renum[k];
-      if (r == 0) r = ++m;
-      d[x] = r;
-    }
-  }
-  if (out_count) *out_count = m;
-  return out;
+  for (auto& k : key)
+    if (drop[std::size_t(k)]) k = 0;
+  return renumber_column_keys(labels, count, off, x0, key, cols.size() + 2, out_count);
 }
 
 }  // namespace fs::detect
