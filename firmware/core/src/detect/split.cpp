@@ -315,22 +315,21 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
         ++s.n, s.r += px[x].r, s.g += px[x].g, s.b += px[x].b;
       }
   }
-  // Chromaticity step between two column ranges' sums, Q16 (see the header).
-  auto chroma_step = [](const Sums& a, const Sums& b) {
-    const std::int64_t da = a.r + a.g + a.b + 30 * a.n, db = b.r + b.g + b.b + 30 * b.n;
-    std::int64_t step = 0;
-    const std::int64_t ca[3] = {a.r, a.g, a.b}, cb[3] = {b.r, b.g, b.b};
-    for (int k = 0; k < 3; ++k) {
-      const std::int64_t qa = ((ca[k] + 10 * a.n) << 16) / da, qb = ((cb[k] + 10 * b.n) << 16) / db;
-      step = std::max(step, qa > qb ? qa - qb : qb - qa);
-    }
-    return step;
-  };
-  const auto threshold = static_cast<std::int64_t>(std::llround(min_step * 65536.0));
+  // Regularised chromaticity of pixel sums, Q16 (see the header), and the step between two sums: the
+  // largest of the three channel differences.
   auto chroma = [](const Sums& a, std::int64_t q[3]) {
     const std::int64_t d = a.r + a.g + a.b + 30 * a.n;
     q[0] = ((a.r + 10 * a.n) << 16) / d, q[1] = ((a.g + 10 * a.n) << 16) / d, q[2] = ((a.b + 10 * a.n) << 16) / d;
   };
+  auto chroma_step = [&](const Sums& a, const Sums& b) {
+    std::int64_t qa[3], qb[3];
+    chroma(a, qa);
+    chroma(b, qb);
+    std::int64_t step = 0;
+    for (int k = 0; k < 3; ++k) step = std::max(step, qa[k] > qb[k] ? qa[k] - qb[k] : qb[k] - qa[k]);
+    return step;
+  };
+  const auto threshold = static_cast<std::int64_t>(std::llround(min_step * 65536.0));
   auto dist2 = [](const std::int64_t p[3], const std::int64_t q[3]) {
     std::int64_t s2 = 0;
     for (int k = 0; k < 3; ++k) s2 += (p[k] - q[k]) * (p[k] - q[k]);
@@ -342,7 +341,7 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
   // down the whole box; a step of the column means made by blobs of one multi-coloured surface (camouflage)
   // does not hold row by row.
   constexpr int kRowPx = 3;
-  auto rows_agree = [&](int c, std::size_t /*o*/, std::size_t i, const Sums& lw, const Sums& rw) {
+  auto rows_agree = [&](int c, std::size_t i, const Sums& lw, const Sums& rw) {
     std::int64_t ql[3], qr[3];
     chroma(lw, ql);
     chroma(rw, qr);
@@ -402,7 +401,7 @@ ImageI32 split_seams(const ImageI32& labels, int count, const ImageRgb8& rgb, do
       for (const auto& [neg_step, i] : cand) {
         const Sums left = range(i - std::min(i - a, std::size_t(window)), i);
         const Sums right = range(i, std::min(b, i + std::size_t(window)));
-        if (min_rows <= 0 || rows_agree(c, o, i, left, right) >= min_rows) {
+        if (min_rows <= 0 || rows_agree(c, i, left, right) >= min_rows) {
           best_i = i;
           found = true;
           break;
