@@ -233,3 +233,50 @@ def test_detect_eval_bad_dataset(firmware_bin, tmp_path):
     assert_user_error(run(firmware_bin, "detect-eval", "--dataset", tmp_path), "fuzzystereo_sim.json")
     (tmp_path / "fuzzystereo_sim.json").write_text("{}")
     assert_user_error(run(firmware_bin, "detect-eval", "--dataset", tmp_path), "image_2")
+
+
+# ---- fuzzyctl detect-report ---------------------------------------------------------------------
+
+def test_detect_report_pictures_misses_and_changes(firmware_bin, dataset, tmp_path):
+    from fuzzyctl import cli
+    from fuzzyctl.detectreport import classify_miss
+
+    base, none = tmp_path / "base.json", tmp_path / "none.json"
+    assert run(firmware_bin, "detect-eval", "--dataset", dataset, "--oracle-disparity", "--json", base).returncode == 0
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[detect]\nmin_area_px = 100000\n")  # nothing is detected
+    assert run(firmware_bin, "detect-eval", "--dataset", dataset, "--oracle-disparity", "--config", cfg,
+               "--json", none).returncode == 0
+    out = tmp_path / "r.html"
+    assert cli.main(["detect-report", str(base), "--out", str(out)]) == 0
+    page = out.read_text()
+    # The one oracle miss (the 13-row box, see test_detect_eval_oracle) is pictured and classified.
+    assert page.count("<div class='fr'>") == 1 and "data:image/jpeg;base64," in page
+    assert "Misses by class" in page and "overall" in page
+    # Against the base: the 5 detected obstacles are lost, every frame that had one is pictured first.
+    out2 = tmp_path / "r2.html"
+    assert cli.main(["detect-report", str(none), "--against", str(base), "--dataset", str(dataset),
+                     "--out", str(out2)]) == 0
+    page2 = out2.read_text()
+    assert "0 obstacles gained, 5 lost" in page2 and "class='worse'>lost" in page2
+    # classify_miss on made-up boxes.
+    gt = [{"id": 0, "box": [10, 10, 30, 50], "visible_pixels": 800}, {"id": 1, "box": [32, 10, 50, 50],
+                                                                      "visible_pixels": 700}]
+    miss = {"id": 0, "box": [10, 10, 30, 50]}
+    assert classify_miss(miss, [], gt) == "none"
+    assert classify_miss(miss, [{"box": [8, 8, 52, 52]}], gt) == "merged, with a neighbour"
+    assert classify_miss(miss, [{"box": [0, 0, 40, 70]}], gt[:1]) == "merged"
+    assert classify_miss(miss, [{"box": [5, 5, 25, 40]}], gt) == "offset"
+    assert classify_miss(miss, [{"box": [12, 12, 20, 40]}], gt) == "fragment"
+    assert classify_miss(miss, [{"box": [10, 10, 30, 50]}], gt) == "distance"
+
+
+def test_detect_report_bad_input(dataset, tmp_path):
+    from fuzzyctl import cli
+
+    assert cli.main(["detect-report", str(tmp_path / "missing.json")]) != 0
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"sets": {}}')
+    assert cli.main(["detect-report", str(bad), "--dataset", str(dataset)]) != 0
+    bad.write_text("{not json")
+    assert cli.main(["detect-report", str(bad)]) != 0

@@ -657,6 +657,26 @@ def suite_report_cmd(record_dir: Path, out: Path | None, all_runs: bool) -> None
     console.print(f"suite report: {path} ({n} runs, {failed} failed)")
 
 
+@app.command("detect-report", short_help="HTML page of a detect-eval result: misses classified, worst frames boxed.")
+@click.argument("eval_json", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--dataset", type=click.Path(path_type=Path, file_okay=False), default=None,
+              help="The generated set the evaluation ran on (default: the JSON's 'dataset').")
+@click.option("--against", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="A base evaluation of the same set: gained / lost obstacles and FP changes per frame.")
+@click.option("--out", type=_path, default=None, help="HTML file (default EVAL_JSON with .html).")
+@click.option("--frames", "max_frames", type=click.IntRange(0, 10000), default=30, show_default=True,
+              help="Frames pictured at most (changed ones first, then the worst).")
+def detect_report_cmd(eval_json: Path, dataset: Path | None, against: Path | None, out: Path | None,
+                      max_frames: int) -> None:
+    """One HTML page of `fuzzystereo detect-eval --json EVAL_JSON`: the per-type table, every miss
+    classified (none, merged, fragment, offset, distance), and the frames with misses or false positives
+    drawn (ground truth white / yellow when missed, matched detections green, false positives red)."""
+    from .detectreport import write_detect_report
+
+    path, shown = write_detect_report(eval_json, out or eval_json.with_suffix(".html"), dataset, against, max_frames)
+    console.print(f"detection report: {path} ({shown} frames pictured)")
+
+
 @app.command("track-errors", short_help="Tracker measurement and velocity errors of simulator run records.")
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
 @click.option("--min-hits", type=click.IntRange(1, 1000), default=4, show_default=True,
