@@ -30,7 +30,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .errors import FatalError
+from .errors import FatalError, load_json
 
 Box = tuple[int, int, int, int]
 
@@ -42,10 +42,7 @@ def load_eval(path: Path) -> dict[str, Any]:
     path = Path(path)
     if not path.is_file():
         raise FatalError(f"{path}: not found (write one with 'fuzzystereo detect-eval --json {path.name}')")
-    try:
-        doc = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise FatalError(f"{path}: not valid JSON: {exc}") from exc
+    doc = load_json(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("frames"), list) or "overall" not in doc:
         raise FatalError(f"{path}: not a 'fuzzystereo detect-eval --json' file (no 'frames' list or 'overall')")
     for i, f in enumerate(doc["frames"]):
