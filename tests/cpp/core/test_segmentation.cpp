@@ -1,6 +1,8 @@
 #include <array>
 #include <queue>
 #include <set>
+#include <stdexcept>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -73,6 +75,19 @@ TEST(Slic, Deterministic) {
   const ImageU8 img = test::texture_image(64, 48, 9u);
   SegmentationParams p;
   EXPECT_EQ(slic_segment(img, p).labels.data, slic_segment(img, p).labels.data);
+}
+
+TEST(Slic, RefusesParametersOutsideTheIntegerFormatsRange) {
+  // region_size <= 48 keeps dI * S in int16 and D' below the iteration tag; compactness <= 100 likewise.
+  const ImageU8 img = test::texture_image(64, 48, 9u);
+  SegmentationParams p;
+  p.region_size = 48;
+  EXPECT_NO_THROW(slic_segment(img, p));
+  for (const auto& [S, m] : {std::pair{49, 20}, {0, 20}, {8, 101}, {8, -1}}) {
+    p.region_size = S;
+    p.compactness = m;
+    EXPECT_THROW(slic_segment(img, p), std::invalid_argument) << S << " " << m;
+  }
 }
 
 TEST(Slic, SegmentCountFollowsRegionSize) {

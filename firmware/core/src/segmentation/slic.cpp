@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <limits>
+#include <stdexcept>
 
 #include "fuzzystereo/stages.hpp"
 #include "internal.hpp"
@@ -96,6 +97,10 @@ Segmentation segmentation_from_labels(ImageI32 labels) {
 
 Segmentation slic_segment(const ImageU8& img, const SegmentationParams& p) {
   const int w = img.width, h = img.height, S = p.region_size;
+  // The ranges the config enforces (common/config/schema.toml), which the integer formats rely on: the
+  // 16-bit dI * S of assign_window and the iteration tag's bound (header).
+  if (S < 1 || S > 48 || p.compactness < 0 || p.compactness > 100)
+    throw std::invalid_argument("slic_segment: region_size must be in [1, 48] and compactness in [0, 100]");
   const std::int64_t m2 = std::int64_t(p.compactness) * p.compactness, S2 = std::int64_t(S) * S;
 
   // Grid centres, moved to the lowest-gradient pixel of the 3x3 neighbourhood.
