@@ -258,15 +258,22 @@ TEST(Esr, EntropyOfKnownBlocks) {
 }
 
 TEST(Esr, BlockMeanMatchesScalarReference) {
-  const ImageI16 d = random_disp(29, 13, 30, 9u, 20, 5);
-  const ImageI16 m = block_mean(d, 5);
-  for (int y = 0; y < 13; ++y)
-    for (int x = 0; x < 29; ++x) {
-      std::int64_t s = 0, n = 0;
-      for (int yy = y - 2; yy <= y + 2; ++yy)
-        for (int xx = x - 2; xx <= x + 2; ++xx)
-          if (xx >= 0 && yy >= 0 && xx < 29 && yy < 13 && d.at(xx, yy) >= 0) { s += d.at(xx, yy); ++n; }
-      EXPECT_EQ(m.at(x, y), n ? std::int16_t(std::floor(double(s) / double(n) + 0.5)) : kInvalidDisp);
+  // Every window the config allows (3-31: the multiply-by-reciprocal path up to 13, the division above),
+  // and maps near the largest Q4 disparity (2047 px) where the reciprocal's bound is tightest.
+  for (const int max_px : {30, 2047})
+    for (int win = 3; win <= 31; win += 2) {
+      const ImageI16 d = random_disp(41, 37, max_px, 9u + unsigned(win), 20, 5);
+      const ImageI16 m = block_mean(d, win);
+      const int rr = win / 2;
+      for (int y = 0; y < 37; ++y)
+        for (int x = 0; x < 41; ++x) {
+          std::int64_t s = 0, n = 0;
+          for (int yy = y - rr; yy <= y + rr; ++yy)
+            for (int xx = x - rr; xx <= x + rr; ++xx)
+              if (xx >= 0 && yy >= 0 && xx < 41 && yy < 37 && d.at(xx, yy) >= 0) { s += d.at(xx, yy); ++n; }
+          ASSERT_EQ(m.at(x, y), n ? std::int16_t(std::floor(double(s) / double(n) + 0.5)) : kInvalidDisp)
+              << "window " << win << " max " << max_px << " at " << x << "," << y;
+        }
     }
 }
 

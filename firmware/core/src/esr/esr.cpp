@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <vector>
 
 #include "fuzzystereo/stages.hpp"
 #include "internal.hpp"
@@ -157,6 +158,15 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
 ImageI16 block_mean(const ImageI16& disp, int window) {
   const int w = disp.width, h = disp.height, r = window / 2;
   ImageI16 out(w, h, kInvalidDisp);
+  // The rounded mean (2 s + n) / (2 n) by a multiplication: with recip[k] = ceil(2^32 / k),
+  // floor(a * recip[k] / 2^32) = floor(a / k) exactly while a * k < 2^32 (the error term is below 1 / k; see
+  // block_entropy). Here a <= 2 n * 32767 + n and k = 2 n, so a * k <= 131070 n^2 < 2^32 for n <= 181, i.e.
+  // windows up to 13; larger windows divide.
+  const std::int64_t nmax = std::int64_t(window) * window;
+  const bool reciprocal = 131070 * nmax * nmax < (std::int64_t(1) << 32);
+  std::vector<std::uint64_t> recip(reciprocal ? std::size_t(2 * nmax) + 1 : 0, 0);
+  for (std::size_t k = 1; k < recip.size(); ++k) recip[k] = ((std::uint64_t(1) << 32) + k - 1) / k;
+  const std::uint64_t* const rp = recip.data();
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel
 #endif
@@ -196,7 +206,8 @@ ImageI16 block_mean(const ImageI16& disp, int window) {
       for (int x = 0; x < w; ++x) {
         if (x + r < w) { s += cs[std::size_t(x + r)]; n += cn[std::size_t(x + r)]; }
         if (x - r - 1 >= 0) { s -= cs[std::size_t(x - r - 1)]; n -= cn[std::size_t(x - r - 1)]; }
-        if (n > 0) o[x] = static_cast<std::int16_t>((2 * s + n) / (2 * n));
+        if (n > 0)
+          o[x] = static_cast<std::int16_t>(reciprocal ? (std::uint64_t(2 * s + n) * rp[2 * n]) >> 32 : (2 * s + n) / (2 * n));
       }
     }
   }
