@@ -116,21 +116,23 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
   r.components = detect::split_bimodal_components(r.components, n, disp, p.split_min_px, p.split_min_rel,
                                                   p.split_max_valley, p.split_rounds, &n);
   r.obstacles = detect::measure_obstacles(r.components, n, disp, calib, p, &r.obstacle_labels);
+  // Pieces cut out of obstacles (necks, seams) are measured again with merging off (they were one group
+  // and stay apart), except across a nearer occluder: a farther obstacle seen on both sides of a thin
+  // nearer one is one obstacle (merge_occluded).
+  auto measure_apart = [&](const ImageI32& cut, int count) {
+    DetectParams pm = p;
+    pm.merge_gap_px = 0;
+    pm.merge_edge_rel_disparity = 0;
+    pm.contain_min_inside = 0;
+    r.obstacles = detect::measure_obstacles(cut, count, disp, calib, pm, &r.obstacle_labels);
+  };
   // Necks (session 30): an obstacle that fragment merging or a thin strip of pixels joined across a
   // run of thin columns is cut there and measured again, without merging.
   if (p.neck_min_width_px > 0) {
     int nn = 0;
     const ImageI32 cut = detect::split_necks(r.obstacle_labels, int(r.obstacles.size()), p.neck_min_width_px,
                                              p.neck_max_share, p.neck_min_px, p.neck_foot_share, &nn);
-    if (nn != int(r.obstacles.size())) {  // a cut leaves at least one label more
-      DetectParams pm = p;
-      // Merging off (the pieces were one group and stay apart), except across a nearer occluder:
-      // a farther obstacle seen on both sides of a thin nearer one is one obstacle (merge_occluded).
-      pm.merge_gap_px = 0;
-      pm.merge_edge_rel_disparity = 0;
-      pm.contain_min_inside = 0;
-      r.obstacles = detect::measure_obstacles(cut, nn, disp, calib, pm, &r.obstacle_labels);
-    }
+    if (nn != int(r.obstacles.size())) measure_apart(cut, nn);  // a cut leaves at least one label more
   }
   // Seams (session 33): two obstacles side by side at nearly one depth, cut where the colour changes.
   if (p.seam_min_step > 0 && !rgb.empty()) {
@@ -138,13 +140,8 @@ DetectResult Detector::detect(const ImageI16& disp_in, const ImageRgb8& rgb, con
     const ImageI32 cut = detect::split_seams(r.obstacle_labels, int(r.obstacles.size()), rgb, p.seam_min_step,
                                              p.seam_window_px, p.seam_min_width_px, p.seam_min_px, p.seam_max_cuts, p.seam_min_rows,
                                              p.seam_drop_share, &ns);
-    if (ns != int(r.obstacles.size())) {
-      DetectParams pm = p;  // the parts stay apart (as after a neck cut)
-      pm.merge_gap_px = 0;
-      pm.merge_edge_rel_disparity = 0;
-      pm.contain_min_inside = 0;
-      r.obstacles = detect::measure_obstacles(cut, ns, disp, calib, pm, &r.obstacle_labels);
-    }
+    // A cut adds a label, unless seam_drop_share dropped a piece as well: then the labels tell.
+    if (ns != int(r.obstacles.size()) || cut.data != r.obstacle_labels.data) measure_apart(cut, ns);
   }
   // Below the road (session 7): wrong-depth blobs the road at their depth would hide.
   detect::drop_below_road(r.obstacles, r.obstacle_labels, r.road_line_q4, p);

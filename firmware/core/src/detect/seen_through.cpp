@@ -138,8 +138,10 @@ void merge_side_faces(std::vector<Obstacle>& obstacles, ImageI32& labels, const 
   }
   std::vector<bool> drop(n, false);
   std::vector<std::int32_t> to(n + 1, 0);
+  bool any = false;
   for (std::size_t f = 0; f < n; ++f) {
     if (host[f] < 0 || host[std::size_t(host[f])] >= 0) continue;  // no chains: a host is not itself a face
+    any = true;
     Obstacle& H = obstacles[std::size_t(host[f])];
     const Obstacle& F = obstacles[f];
     H.x0 = std::min(H.x0, F.x0), H.x1 = std::max(H.x1, F.x1), H.y0 = std::min(H.y0, F.y0), H.y1 = std::max(H.y1, F.y1);
@@ -147,6 +149,7 @@ void merge_side_faces(std::vector<Obstacle>& obstacles, ImageI32& labels, const 
     to[f + 1] = H.id + 1;
     drop[f] = true;
   }
+  if (!any) return;  // nothing joined: no pass over the labels
   for (std::int32_t& l : labels.data)
     if (l > 0 && std::size_t(l) <= n && to[std::size_t(l)] > 0) l = to[std::size_t(l)];
   drop_obstacles(obstacles, labels, drop);

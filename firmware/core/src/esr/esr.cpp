@@ -21,6 +21,15 @@
 namespace fs {
 
 namespace {
+// recip[k] = ceil(2^32 / k) for k = 1 .. kmax (recip[0] unused): floor(a * recip[k] / 2^32) = floor(a / k)
+// exactly for every dividend with a * k < 2^32 (the error term a * (recip[k] - 2^32 / k) / 2^32 < a / 2^32
+// < 1 / k cannot carry past the next multiple of 1 / k).
+std::vector<std::uint64_t> ceil_reciprocals_2p32(std::uint64_t kmax) {
+  std::vector<std::uint64_t> recip(std::size_t(kmax) + 1, 0);
+  for (std::uint64_t k = 1; k <= kmax; ++k) recip[std::size_t(k)] = ((std::uint64_t(1) << 32) + k - 1) / k;
+  return recip;
+}
+
 // Per-row passes of block_entropy's precomputation, one call per row (clone dispatch per row, loops
 // branch-free so they vectorise).
 FS_TARGET_CLONES_V4
@@ -89,8 +98,7 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
   // i.e. windows up to 9; larger windows divide.
   const std::uint64_t nmax = T.size() - 1;
   const bool reciprocal = (T.back() + nmax) * nmax < (std::uint64_t(1) << 32);
-  std::vector<std::uint64_t> recip(T.size(), 0);
-  for (std::uint64_t k = 1; k <= nmax; ++k) recip[k] = ((std::uint64_t(1) << 32) + k - 1) / k;
+  const std::vector<std::uint64_t> recip = ceil_reciprocals_2p32(nmax);
   const bool small_table = T.back() + T.size() < (std::uint64_t(1) << 32);
   const std::uint64_t* __restrict Tp = T.data();
   const std::uint64_t* __restrict Rp = recip.data();
@@ -158,14 +166,12 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
 ImageI16 block_mean(const ImageI16& disp, int window) {
   const int w = disp.width, h = disp.height, r = window / 2;
   ImageI16 out(w, h, kInvalidDisp);
-  // The rounded mean (2 s + n) / (2 n) by a multiplication: with recip[k] = ceil(2^32 / k),
-  // floor(a * recip[k] / 2^32) = floor(a / k) exactly while a * k < 2^32 (the error term is below 1 / k; see
-  // block_entropy). Here a <= 2 n * 32767 + n and k = 2 n, so a * k <= 131070 n^2 < 2^32 for n <= 181, i.e.
-  // windows up to 13; larger windows divide.
+  // The rounded mean (2 s + n) / (2 n) by a multiplication (ceil_reciprocals_2p32): exact while a * k < 2^32;
+  // here a <= 2 n * 32767 + n and k = 2 n, so a * k <= 131070 n^2 < 2^32 for n <= 181, i.e. windows up to 13;
+  // larger windows divide.
   const std::int64_t nmax = std::int64_t(window) * window;
   const bool reciprocal = 131070 * nmax * nmax < (std::int64_t(1) << 32);
-  std::vector<std::uint64_t> recip(reciprocal ? std::size_t(2 * nmax) + 1 : 0, 0);
-  for (std::size_t k = 1; k < recip.size(); ++k) recip[k] = ((std::uint64_t(1) << 32) + k - 1) / k;
+  const std::vector<std::uint64_t> recip = ceil_reciprocals_2p32(reciprocal ? std::uint64_t(2 * nmax) : 0);
   const std::uint64_t* const rp = recip.data();
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel

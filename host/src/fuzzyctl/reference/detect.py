@@ -1168,7 +1168,7 @@ def detect(disp: np.ndarray, rgb: np.ndarray | None, calib: dict, p: DetectParam
         cut, ns = split_seams(ol, len(out), rgb, float(p.seam_min_step), int(p.seam_window_px),
                               int(p.seam_min_width_px), int(p.seam_min_px), int(p.seam_max_cuts),
                               float(p.seam_min_rows), float(getattr(p, "seam_drop_share", 0.0)))
-        if ns != len(out):
+        if ns != len(out) or not np.array_equal(cut, ol):  # a dropped piece can leave the count as it was
             out, ol = measure_obstacles(cut, ns, disp, calib, DetectParams({**p.values, "merge_gap_px": 0,
                                                                             "merge_edge_rel_disparity": 0.0,
                                                                             "contain_min_inside": 0.0}))
