@@ -5,7 +5,10 @@
 // colour image, both converted to grey once (cv::cvtColor) and that same grey pair given to every
 // method. Only each method's compute call is timed (steady_clock), not I/O or conversions.
 // Scores are KITTI-devkit style (metrics.hpp); a set's figures are the means of its per-frame
-// figures (each frame weighs the same, whatever its number of GT pixels).
+// figures (each frame weighs the same, whatever its number of GT pixels). Every figure is over all
+// pixels with ground truth; where a set ships a non-occlusion mask (KITTI disp_noc, MiddEval3
+// mask0nocc) the same figures over its non-occluded pixels follow in a second table and under "noc"
+// in the JSON (the devkits' two evaluation areas; the paper's Table II does not say which it used).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -118,7 +121,7 @@ void run_eval(const EvalOptions& o) {
   // One Matcher per search range: the constructor builds the FIS lookup table.
   std::map<int, std::unique_ptr<Matcher>> matchers;
   std::vector<std::string> set_order;
-  std::map<std::string, std::map<std::string, Accum>> acc;
+  std::map<std::string, std::map<std::string, Accum>> acc, acc_noc;  // all pixels / non-occluded only
 
   std::fprintf(stderr, "eval: %zu frames, threads %d, radiometric '%s'\n", frames.size(), threads,
                o.radiometric.c_str());
@@ -130,6 +133,11 @@ void run_eval(const EvalOptions& o) {
       throw UserError("ground truth '" + f.gt_path + "' is " + std::to_string(gt.cols) + "x" +
                       std::to_string(gt.rows) + " but left image '" + f.left_path + "' is " +
                       std::to_string(im.left.cols) + "x" + std::to_string(im.left.rows));
+    const cv::Mat noc = f.has_noc() ? load_nonoccluded_mask(f) : cv::Mat();
+    if (!noc.empty() && noc.size() != gt.size())
+      throw UserError("non-occlusion mask '" + f.noc_path + "' is " + std::to_string(noc.cols) + "x" +
+                      std::to_string(noc.rows) + " but ground truth '" + f.gt_path + "' is " +
+                      std::to_string(gt.cols) + "x" + std::to_string(gt.rows));
     if (o.radiometric != "none") im.right = apply_radiometric(im.right, o.radiometric);
     const cv::Mat left_gray = to_gray(im.left), right_gray = to_gray(im.right);
     if (std::find(set_order.begin(), set_order.end(), f.set) == set_order.end()) set_order.push_back(f.set);
@@ -139,6 +147,7 @@ void run_eval(const EvalOptions& o) {
     auto record = [&](const std::string& method, const cv::Mat& disp, double ms) {
       const DispMetrics m = evaluate_disparity(disp, gt);
       acc[f.set][method].add(m, ms);
+      if (!noc.empty()) acc_noc[f.set][method].add(evaluate_disparity(disp, gt, noc), ms);
       std::snprintf(buf, sizeof buf, " | %s %.1f ms d1 %.2f%% bad3 %.2f%% dens %.1f%%", method.c_str(), ms, m.d1,
                     m.bad3, m.density);
       line += buf;
@@ -188,21 +197,42 @@ void run_eval(const EvalOptions& o) {
   // Table (means of per-frame figures) and JSON.
   std::vector<std::string> methods{kFuzzy};
   for (const Baseline b : baselines) methods.emplace_back(baseline_name(b));
-  std::printf("\n%-22s %-12s %6s %8s %7s %7s %7s %8s %10s\n", "set", "method", "frames", "avg_err", "bad2%",
-              "bad3%", "d1%", "density%", "ms/frame");
+  const auto header = [] {
+    std::printf("%-22s %-12s %6s %8s %7s %7s %7s %8s %10s\n", "set", "method", "frames", "avg_err", "bad2%", "bad3%",
+                "d1%", "density%", "ms/frame");
+  };
+  const auto row = [](const std::string& s, const std::string& m, const Accum& a) {
+    std::printf("%-22s %-12s %6d %8.3f %7.2f %7.2f %7.2f %8.2f %10.1f\n", s.c_str(), m.c_str(), a.frames,
+                a.mean(a.avg_err), a.mean(a.bad2), a.mean(a.bad3), a.mean(a.d1), a.mean(a.density), a.mean(a.ms));
+  };
+  const auto figures = [](const Accum& a) {
+    return nlohmann::ordered_json{{"avg_err", a.mean(a.avg_err)}, {"bad2", a.mean(a.bad2)},
+                                  {"bad3", a.mean(a.bad3)},       {"d1", a.mean(a.d1)},
+                                  {"density", a.mean(a.density)}, {"ms_per_frame", a.mean(a.ms)},
+                                  {"frames", a.frames}};
+  };
+  std::printf("\n");
+  header();
   nlohmann::ordered_json sets = nlohmann::ordered_json::object();
   for (const auto& s : set_order) {
     for (const auto& m : methods) {
       const Accum& a = acc[s][m];
-      std::printf("%-22s %-12s %6d %8.3f %7.2f %7.2f %7.2f %8.2f %10.1f\n", s.c_str(), m.c_str(), a.frames,
-                  a.mean(a.avg_err), a.mean(a.bad2), a.mean(a.bad3), a.mean(a.d1), a.mean(a.density), a.mean(a.ms));
-      sets[s][m] = {{"avg_err", a.mean(a.avg_err)}, {"bad2", a.mean(a.bad2)},       {"bad3", a.mean(a.bad3)},
-                    {"d1", a.mean(a.d1)},           {"density", a.mean(a.density)}, {"ms_per_frame", a.mean(a.ms)},
-                    {"frames", a.frames}};
+      row(s, m, a);
+      sets[s][m] = figures(a);
+      // "noc": the same figures over the non-occluded pixels of the set's frames that have a mask.
+      if (acc_noc.count(s) != 0) sets[s][m]["noc"] = figures(acc_noc[s][m]);
     }
   }
-  std::printf("(threads %d; radiometric '%s'; figures are per-frame means; errors after KITTI hole filling)\n",
+  std::printf("(threads %d; radiometric '%s'; figures are per-frame means over all pixels with ground truth; errors after KITTI hole filling)\n",
               threads, o.radiometric.c_str());
+  if (!acc_noc.empty()) {
+    std::printf("\nnon-occluded pixels only (sets that ship a mask: KITTI disp_noc, MiddEval3 mask0nocc)\n");
+    header();
+    for (const auto& s : set_order) {
+      if (acc_noc.count(s) == 0) continue;
+      for (const auto& m : methods) row(s, m, acc_noc[s][m]);
+    }
+  }
   if (json_out.is_open()) {
     json_out << nlohmann::ordered_json{{"sets", sets}}.dump(2) << "\n";
     if (!json_out) throw UserError("cannot write JSON file '" + o.json + "'");

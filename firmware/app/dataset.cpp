@@ -151,6 +151,10 @@ std::optional<std::vector<Frame>> detect_kitti2015(const stdfs::path& d) {
       f.gt_encoding = GtEncoding::Png16;
       f.gt_divisor = 256.0;
     }
+    if (f.has_gt() && is_file(d / "disp_noc_0" / file)) {
+      f.noc_path = (d / "disp_noc_0" / file).string();
+      f.noc_encoding = NocEncoding::KittiDisp;
+    }
     f.max_disparity = kMaxDispKitti;
     const auto calib = d / "calib_cam_to_cam" / (f.name + ".txt");
     if (is_file(calib)) f.calib = parse_kitti2015_calib(read_text(calib));
@@ -178,6 +182,10 @@ std::optional<std::vector<Frame>> detect_kitti2012(const stdfs::path& d) {
       f.gt_path = (d / "disp_occ" / file).string();
       f.gt_encoding = GtEncoding::Png16;
       f.gt_divisor = 256.0;
+    }
+    if (f.has_gt() && is_file(d / "disp_noc" / file)) {
+      f.noc_path = (d / "disp_noc" / file).string();
+      f.noc_encoding = NocEncoding::KittiDisp;
     }
     f.max_disparity = kMaxDispKitti;
     const auto calib = d / "calib" / (f.name + ".txt");
@@ -263,6 +271,10 @@ std::optional<std::vector<Frame>> detect_middlebury2014(const stdfs::path& d) {
   if (is_file(d / "disp0GT.pfm")) {
     f.gt_path = (d / "disp0GT.pfm").string();
     f.gt_encoding = GtEncoding::Pfm;
+    if (is_file(d / "mask0nocc.png")) {
+      f.noc_path = (d / "mask0nocc.png").string();
+      f.noc_encoding = NocEncoding::MiddEvalMask;
+    }
   }
   f.max_disparity = round_up_16(ndisp);  // calib.txt's ndisp is for this resolution
   return std::vector<Frame>{std::move(f)};
@@ -441,6 +453,25 @@ cv::Mat load_ground_truth(const Frame& frame) {
     }
   }
   return gt;
+}
+
+cv::Mat load_nonoccluded_mask(const Frame& frame) {
+  const std::string& p = frame.noc_path;
+  if (frame.noc_encoding == NocEncoding::None)
+    throw UserError("frame " + frame.set + "/" + frame.name + " has no non-occlusion mask");
+  const cv::Mat raw = cv::imread(p, cv::IMREAD_UNCHANGED);
+  if (raw.empty()) throw UserError("cannot read non-occlusion mask '" + p + "'");
+  if (raw.channels() != 1) throw UserError("non-occlusion mask '" + p + "' is not a single-channel image");
+  cv::Mat mask;
+  if (frame.noc_encoding == NocEncoding::KittiDisp) {
+    if (raw.type() != CV_16UC1)
+      throw UserError("non-occluded disparity '" + p + "' is not a 16-bit single-channel PNG (KITTI encoding)");
+    mask = raw > 0;
+  } else {
+    if (raw.type() != CV_8UC1) throw UserError("non-occlusion mask '" + p + "' is not an 8-bit image");
+    mask = raw == 255;
+  }
+  return mask;
 }
 
 }  // namespace fs::app

@@ -20,6 +20,14 @@ enum class GtEncoding {
   Pfm,       // MiddEval3: PFM float32, rows bottom-to-top, inf = unknown
 };
 
+// Where the frame's non-occluded pixels are marked (the evaluation area "non-occluded" of the KITTI
+// devkit and of MiddEval3): only where the set ships it.
+enum class NocEncoding {
+  None,          // not shipped (Middlebury 2001-2006, KITTI 2015 copies without disp_noc_0)
+  KittiDisp,     // KITTI disp_noc/ (2012) or disp_noc_0/ (2015): a pixel is non-occluded where it is > 0
+  MiddEvalMask,  // MiddEval3 mask0nocc.png: 255 = non-occluded, 128 = occluded, 0 = no ground truth
+};
+
 struct Calibration {
   bool valid = false;
   double focal_px = 0.0;     // f [px] of the rectified left camera
@@ -40,8 +48,11 @@ struct Frame {
   // a multiple of 16 so OpenCV's BM/SGBM take it unchanged.
   int max_disparity = 64;
   Calibration calib;
+  std::string noc_path;      // empty when noc_encoding == None
+  NocEncoding noc_encoding = NocEncoding::None;
 
   bool has_gt() const { return gt_encoding != GtEncoding::None; }
+  bool has_noc() const { return noc_encoding != NocEncoding::None; }
 };
 
 // Finds every frame of every known layout under `dir` (the datasets root, one set's folder, or one
@@ -52,6 +63,11 @@ std::vector<Frame> discover_dataset(const std::string& dir);
 // Decodes the frame's ground truth (see the convention above). Throws fs::UserError naming the file
 // when it is missing or undecodable, or when the frame has no ground truth.
 cv::Mat load_ground_truth(const Frame& frame);
+
+// The frame's non-occluded pixels: CV_8UC1, 255 = non-occluded, 0 = occluded or unknown. Throws
+// fs::UserError naming the file when it is missing or undecodable, or when the frame has none
+// (has_noc() false).
+cv::Mat load_nonoccluded_mask(const Frame& frame);
 
 // PFM reader ("Pf" grey or "PF" colour -> first channel; either endianness), top row first.
 // Values are returned as stored (inf stays inf). Throws fs::UserError naming the file.

@@ -89,10 +89,12 @@ cv::Mat fill_invalid_kitti(const cv::Mat& disp) {
   return out;
 }
 
-DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt) {
+DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt, const cv::Mat& area) {
   if (est.type() != CV_32FC1 || gt.type() != CV_32FC1)
     throw std::invalid_argument("evaluate_disparity: expected CV_32FC1 estimate and ground truth");
   if (est.size() != gt.size()) throw std::invalid_argument("evaluate_disparity: estimate and ground truth sizes differ");
+  if (!area.empty() && (area.type() != CV_8UC1 || area.size() != gt.size()))
+    throw std::invalid_argument("evaluate_disparity: the evaluation area must be CV_8UC1 of the ground truth's size");
   const cv::Mat filled = fill_invalid_kitti(est);
 
   // KITTI thresholds (evaluate_stereo.cpp: ABS_THRESH = 3, REL_THRESH = 0.05).
@@ -103,8 +105,9 @@ DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt) {
     const float* g = gt.ptr<float>(y);
     const float* e0 = est.ptr<float>(y);
     const float* e = filled.ptr<float>(y);
+    const unsigned char* a = area.empty() ? nullptr : area.ptr<unsigned char>(y);
     for (int x = 0; x < gt.cols; ++x) {
-      if (!gt_valid(g[x])) continue;
+      if (!gt_valid(g[x]) || (a != nullptr && a[x] == 0)) continue;
       ++n;
       if (est_valid(e0[x])) ++n_dense;
       const double d_est = est_valid(e[x]) ? double(e[x]) : 0.0;  // whole map invalid: score against 0

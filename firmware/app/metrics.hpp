@@ -38,7 +38,10 @@ inline bool gt_valid(float d) { return std::isfinite(d) && d > 0.0f; }
 // (the devkit scores its stored -1; the two differ by 1 px only in that degenerate case).
 cv::Mat fill_invalid_kitti(const cv::Mat& disp);
 
-// Metrics of `est` against `gt`. Throws std::invalid_argument when sizes/types differ.
-DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt);
+// Metrics of `est` against `gt`. With `area` (CV_8UC1, same size), only the GT-valid pixels where it
+// is non-zero are scored (the devkit's evaluation areas: KITTI disp_noc / MiddEval3 mask0nocc give
+// "non-occluded"); the filling still uses the whole map, as the devkit's does. Throws
+// std::invalid_argument when sizes/types differ.
+DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt, const cv::Mat& area = cv::Mat());
 
 }  // namespace fs::app

@@ -95,6 +95,49 @@ def test_evaluate_disparity_by_hand():
     assert m.density == pytest.approx(200.0 / 3)
 
 
+def test_evaluation_area_scores_only_its_pixels_but_fills_from_the_whole_map():
+    gt = np.array([[10.0, 0.0, 100.0, 4.0]], np.float32)
+    est = np.array([[12.5, 3.0, 96.0, -1.0]], np.float32)
+    m = metrics.evaluate_disparity(est, gt, np.array([[True, True, False, True]]))
+    assert m.gt_pixels == 2  # px 1 has no GT, px 2 is outside the area
+    assert m.avg_err == pytest.approx((2.5 + 92.0) / 2)  # px 3 is still filled with px 2's 96
+    assert m.density == pytest.approx(50.0)
+    full = metrics.evaluate_disparity(est, gt, np.ones_like(gt, bool))
+    assert full == metrics.evaluate_disparity(est, gt)
+    with pytest.raises(ValueError, match="evaluation area"):
+        metrics.evaluate_disparity(est, gt, np.ones((1, 3), bool))
+
+
+def test_non_occluded_masks_where_the_set_ships_them(tmp_path):
+    k12 = tmp_path / "kitti2012" / "training"
+    for sub in ("colored_0", "colored_1"):
+        _png(k12 / sub / "000001_10.png")
+    _png(k12 / "disp_occ" / "000001_10.png", value=512, dtype=np.uint16)
+    noc = np.full((4, 6), 512, np.uint16)
+    noc[:, :2] = 0  # occluded band
+    _png(k12 / "disp_noc" / "000001_10.png", value=0, dtype=np.uint16)
+    cv2.imwrite(str(k12 / "disp_noc" / "000001_10.png"), noc)
+    mq = tmp_path / "MiddEval3" / "trainingQ" / "Motor"
+    _png(mq / "im0.png"), _png(mq / "im1.png")
+    (mq / "calib.txt").write_text("cam0=[1 0 0; 0 1 0; 0 0 1]\nbaseline=1\nndisp=70\n")
+    _pfm(mq / "disp0GT.pfm", np.ones((4, 6), np.float32))
+    mask = np.full((4, 6), 255, np.uint8)
+    mask[0, :] = 128  # occluded
+    mask[1, 0] = 0  # no GT
+    cv2.imwrite(str(mq / "mask0nocc.png"), mask)
+    ts = tmp_path / "mb01" / "tsukuba"
+    _png(ts / "im3.png"), _png(ts / "im4.png"), _png(ts / "disp3.pgm", value=32)
+    frames = {f.key: f for f in dataset.discover(tmp_path)}
+    assert not frames["middlebury2001-3/tsukuba"].has_noc
+    with pytest.raises(FatalError, match="no non-occlusion mask"):
+        dataset.load_nonoccluded_mask(frames["middlebury2001-3/tsukuba"])
+    np.testing.assert_array_equal(dataset.load_nonoccluded_mask(frames["kitti2012/000001"]), noc > 0)
+    np.testing.assert_array_equal(dataset.load_nonoccluded_mask(frames["middlebury2014-Q/Motor"]), mask == 255)
+    (mq / "mask0nocc.png").write_bytes(b"not a png")
+    with pytest.raises(FatalError, match="mask0nocc.png"):
+        dataset.load_nonoccluded_mask(frames["middlebury2014-Q/Motor"])
+
+
 def test_zero_disparity_is_no_estimate():
     gt = np.full((1, 3), 4.0, np.float32)
     m = metrics.evaluate_disparity(np.array([[4.0, 0.0, 3.0]], np.float32), gt)
@@ -245,6 +288,33 @@ def test_metric_code_agrees_with_firmware_eval(firmware_bin, datasets_root, tmp_
     fw_json.write_text(json.dumps(fw))
     assert main(["reference", "eval", "--dataset", str(root), "--from-firmware", "--firmware-json", str(fw_json),
                  "--runs", str(tmp_path / "runs")]) == 1
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+def test_non_occluded_figures_agree_with_firmware_eval(firmware_bin, datasets_root, tmp_path, monkeypatch):
+    """MiddEval3 ships mask0nocc.png: both evals score its non-occluded pixels alike (and differently
+    from all pixels, so the mask is applied)."""
+    import subprocess
+
+    motor = datasets_root / "middlebury2014" / "MiddEval3" / "trainingQ" / "Motorcycle"
+    if not (motor / "mask0nocc.png").is_file():
+        pytest.skip(f"dataset frame {motor} (with mask0nocc.png) not found")
+    root = tmp_path / "ds"
+    shutil.copytree(motor, root / "MiddEval3" / "trainingQ" / "Motorcycle")
+    fw_json = tmp_path / "fw.json"
+    subprocess.run([str(firmware_bin), "eval", "--dataset", str(root), "--json", str(fw_json)], check=True,
+                   capture_output=True, timeout=300)
+    monkeypatch.setenv("FUZZYSTEREO_BIN", str(firmware_bin))
+    ours_json = tmp_path / "ours.json"
+    assert main(["reference", "eval", "--dataset", str(root), "--from-firmware", "--firmware-json", str(fw_json),
+                 "--json", str(ours_json), "--runs", str(tmp_path / "runs")]) == 0
+    fw = json.loads(fw_json.read_text())["sets"]["middlebury2014-Q"]["fuzzystereo"]
+    ours = json.loads(ours_json.read_text())["sets"]["middlebury2014-Q"]["fuzzystereo"]
+    for fig in ("avg_err", "bad2", "bad3", "d1", "density", "frames"):
+        assert ours["noc"][fig] == pytest.approx(fw["noc"][fig], abs=1e-6), fig
+    assert fw["noc"]["frames"] == 1
+    assert fw["noc"]["bad2"] < fw["bad2"]  # occluded pixels are the hard ones
 
 
 @pytest.mark.firmware

@@ -52,6 +52,7 @@ MAX_SCAN_DEPTH = 6
 
 #: GT encodings (dataset.hpp GtEncoding)
 GT_NONE, GT_PNG16, GT_PNG8, GT_PFM = "none", "png16", "png8", "pfm"
+NOC_NONE, NOC_KITTI, NOC_MASK = "none", "kitti", "mask"
 
 
 @dataclass(frozen=True)
@@ -64,10 +65,18 @@ class Frame:
     gt_encoding: str = GT_NONE
     gt_divisor: float = 1.0
     max_disparity: int = 64  # disparities searched: 0 .. max_disparity - 1
+    # Non-occluded pixels, where the set ships them: NOC_KITTI (disp_noc[_0], > 0 = non-occluded) or
+    # NOC_MASK (MiddEval3 mask0nocc.png, 255 = non-occluded); NOC_NONE elsewhere.
+    noc_path: str = ""
+    noc_encoding: str = NOC_NONE
 
     @property
     def has_gt(self) -> bool:
         return self.gt_encoding != GT_NONE
+
+    @property
+    def has_noc(self) -> bool:
+        return self.noc_encoding != NOC_NONE
 
     @property
     def key(self) -> str:
@@ -103,7 +112,7 @@ def _frame_id(image: Path) -> str:
     return stem[: stem.rfind("_")] if "_" in stem else stem
 
 
-def _detect_kitti(d: Path, set_name: str, ldir: str, rdir: str, gtdir: str) -> list[Frame]:
+def _detect_kitti(d: Path, set_name: str, ldir: str, rdir: str, gtdir: str, nocdir: str) -> list[Frame]:
     frames = []
     for left in _files_ending(d / ldir, "_10.png"):
         right = d / rdir / left.name
@@ -111,15 +120,18 @@ def _detect_kitti(d: Path, set_name: str, ldir: str, rdir: str, gtdir: str) -> l
             continue
         gt = d / gtdir / left.name
         has = gt.is_file()
+        noc = d / nocdir / left.name
+        has_noc = has and noc.is_file()
         frames.append(Frame(set_name, _frame_id(left), str(left), str(right), str(gt) if has else "",
-                            GT_PNG16 if has else GT_NONE, 256.0, MAX_DISP_KITTI))
+                            GT_PNG16 if has else GT_NONE, 256.0, MAX_DISP_KITTI,
+                            str(noc) if has_noc else "", NOC_KITTI if has_noc else NOC_NONE))
     return frames
 
 
 def _detect_kitti2015(d: Path) -> list[Frame] | None:
     if not (d / "image_2").is_dir() or not (d / "image_3").is_dir():
         return None
-    return _detect_kitti(d, "kitti2015", "image_2", "image_3", "disp_occ_0")
+    return _detect_kitti(d, "kitti2015", "image_2", "image_3", "disp_occ_0", "disp_noc_0")
 
 
 def _detect_kitti2012(d: Path) -> list[Frame] | None:
@@ -127,7 +139,8 @@ def _detect_kitti2012(d: Path) -> list[Frame] | None:
     grey = (d / "image_0").is_dir() and (d / "image_1").is_dir()
     if not colour and not grey:
         return None
-    return _detect_kitti(d, "kitti2012", "colored_0" if colour else "image_0", "colored_1" if colour else "image_1", "disp_occ")
+    return _detect_kitti(d, "kitti2012", "colored_0" if colour else "image_0", "colored_1" if colour else "image_1", "disp_occ",
+                         "disp_noc")
 
 
 def _detect_middlebury2001_3(d: Path) -> list[Frame] | None:
@@ -182,8 +195,11 @@ def _detect_middlebury2014(d: Path) -> list[Frame] | None:
         res = "Q" if w < 1000 else "H" if w < 2000 else "F"
     gt = d / "disp0GT.pfm"
     has = gt.is_file()
+    noc = d / "mask0nocc.png"
+    has_noc = has and noc.is_file()
     return [Frame(f"middlebury2014-{res}", d.name, str(d / "im0.png"), str(d / "im1.png"), str(gt) if has else "",
-                  GT_PFM if has else GT_NONE, 1.0, round_up_16(ndisp))]
+                  GT_PFM if has else GT_NONE, 1.0, round_up_16(ndisp), str(noc) if has_noc else "",
+                  NOC_MASK if has_noc else NOC_NONE)]
 
 
 SIM_MARKER = "fuzzystereo_sim.json"
@@ -308,6 +324,25 @@ def load_ground_truth(frame: Frame) -> np.ndarray:
             raw = raw[:, :, 0]
     # OpenCV convertTo(CV_32F, 1/divisor): float32 product with the float32 scale
     return raw.astype(np.float32) * np.float32(1.0 / frame.gt_divisor)
+
+
+def load_nonoccluded_mask(frame: Frame) -> np.ndarray:
+    """The frame's non-occluded pixels, bool (H, W); FatalError naming the file (as the firmware's)."""
+    p = frame.noc_path
+    if frame.noc_encoding == NOC_NONE:
+        raise FatalError(f"frame {frame.key} has no non-occlusion mask")
+    raw = cv2.imread(p, cv2.IMREAD_UNCHANGED)
+    if raw is None:
+        raise FatalError(f"cannot read non-occlusion mask '{p}'")
+    if raw.ndim != 2:
+        raise FatalError(f"non-occlusion mask '{p}' is not a single-channel image")
+    if frame.noc_encoding == NOC_KITTI:
+        if raw.dtype != np.uint16:
+            raise FatalError(f"non-occluded disparity '{p}' is not a 16-bit single-channel PNG (KITTI encoding)")
+        return raw > 0
+    if raw.dtype != np.uint8:
+        raise FatalError(f"non-occlusion mask '{p}' is not an 8-bit image")
+    return raw == 255
 
 
 def describe(frames: list[Frame]) -> str:

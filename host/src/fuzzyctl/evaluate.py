@@ -2,8 +2,9 @@
 
 Same frames (``dataset.discover`` / ``select``: frames with ground truth, ``--limit`` per set), same
 GT decoding, same KITTI hole filling and metrics (``metrics``), same JSON shape
-``{"sets": {SET: {METHOD: {avg_err, bad2, bad3, d1, density, ms_per_frame, frames}}}}`` with a
-set's figures the means of its per-frame figures. The map scored per frame is either
+``{"sets": {SET: {METHOD: {avg_err, bad2, bad3, d1, density, ms_per_frame, frames[, noc]}}}}`` with a
+set's figures the means of its per-frame figures; ``noc`` (the same figures over the non-occluded
+pixels) where the set's frames ship a non-occlusion mask (KITTI disp_noc, MiddEval3 mask0nocc). The map scored per frame is either
 
 * ``source = "reference"`` (method ``reference``): the float64 reference pipeline's final left map
   (with its own SLIC; float px, invalid = NaN), or
@@ -29,7 +30,7 @@ import numpy as np
 
 from . import firmware
 from .config import Config, load_config
-from .dataset import Frame, load_ground_truth
+from .dataset import Frame, load_ground_truth, load_nonoccluded_mask
 from .errors import FatalError, load_json
 from .metrics import FIGURES, DispMetrics, disp_q4_to_float, evaluate_disparity, set_means
 
@@ -42,6 +43,7 @@ class FrameScore:
     frame: Frame
     metrics: DispMetrics
     ms: float  # time to produce the map (reference pipeline, or 0 for a reused firmware run)
+    noc: DispMetrics | None = None  # over the non-occluded pixels, where the frame has a mask
 
 
 def frame_config(config_path: str | Path | None, frame: Frame) -> Config:
@@ -112,7 +114,14 @@ def score_frame(frame: Frame, source: str, config_path: str | Path | None = None
     if gt.shape != disp.shape:
         raise FatalError(f"ground truth '{frame.gt_path}' is {gt.shape[1]}x{gt.shape[0]} but the disparity map of "
                          f"{frame.key} is {disp.shape[1]}x{disp.shape[0]}")
-    return FrameScore(frame, evaluate_disparity(disp, gt), ms)
+    noc = None
+    if frame.has_noc:
+        mask = load_nonoccluded_mask(frame)
+        if mask.shape != gt.shape:
+            raise FatalError(f"non-occlusion mask '{frame.noc_path}' is {mask.shape[1]}x{mask.shape[0]} but ground truth "
+                             f"'{frame.gt_path}' is {gt.shape[1]}x{gt.shape[0]}")
+        noc = evaluate_disparity(disp, gt, mask)
+    return FrameScore(frame, evaluate_disparity(disp, gt), ms, noc)
 
 
 def scorer(source: str, **kwargs) -> partial:
@@ -130,6 +139,12 @@ def summarise(scores: list[FrameScore], method: str) -> dict:
         fig = set_means([s.metrics for s in group])
         fig["ms_per_frame"] = sum(s.ms for s in group) / len(group)
         fig["frames"] = len(group)
+        with_noc = [s for s in group if s.noc is not None]
+        if with_noc:
+            noc = set_means([s.noc for s in with_noc])
+            noc["ms_per_frame"] = sum(s.ms for s in with_noc) / len(with_noc)
+            noc["frames"] = len(with_noc)
+            fig["noc"] = noc
         sets[name] = {method: fig}
     return {"sets": sets}
 
@@ -164,4 +179,9 @@ def diff_figures(ours: dict, theirs: dict, method: str, their_method: str = "fuz
         for f in (*FIGURES, "frames"):
             value = None if other is None or f not in other else float(other[f])
             out.append(FigureDiff(set_name, f, float(mine[f]), value))
+        if "noc" in mine:  # the non-occluded figures, named "noc.FIGURE"
+            other_noc = None if other is None else other.get("noc")
+            for f in (*FIGURES, "frames"):
+                value = None if other_noc is None or f not in other_noc else float(other_noc[f])
+                out.append(FigureDiff(set_name, f"noc.{f}", float(mine["noc"][f]), value))
     return out

@@ -83,14 +83,20 @@ def fill_invalid_kitti(disp: np.ndarray) -> np.ndarray:
     return out
 
 
-def evaluate_disparity(est: np.ndarray, gt: np.ndarray) -> DispMetrics:
-    """Metrics of ``est`` against ``gt`` (float32 maps of one shape, conventions above)."""
+def evaluate_disparity(est: np.ndarray, gt: np.ndarray, area: np.ndarray | None = None) -> DispMetrics:
+    """Metrics of ``est`` against ``gt`` (float32 maps of one shape, conventions above). With ``area``
+    (bool, same shape) only the GT-valid pixels inside it are scored; the filling still sees the
+    whole map (the firmware's evaluate_disparity with an evaluation area)."""
     est = np.asarray(est, dtype=np.float32)
     gt = np.asarray(gt, dtype=np.float32)
     if est.shape != gt.shape:
         raise ValueError(f"estimate {est.shape} and ground truth {gt.shape} sizes differ")
+    if area is not None and np.shape(area) != gt.shape:
+        raise ValueError(f"evaluation area {np.shape(area)} and ground truth {gt.shape} sizes differ")
     filled = fill_invalid_kitti(est)
     g_ok = gt_valid(gt)
+    if area is not None:
+        g_ok &= np.asarray(area, dtype=bool)
     n = int(g_ok.sum())
     m = DispMetrics(gt_pixels=n)
     if n == 0:

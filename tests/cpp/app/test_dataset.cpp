@@ -118,6 +118,7 @@ void build_all_layouts(const stdfs::path& root) {
   write(k12 / "image_0" / "000002_10.png", grey(w, h));
   write(k12 / "image_1" / "000002_10.png", grey(w, h));
   write(k12 / "disp_occ" / "000002_10.png", gt_one<std::uint16_t>(w, h, CV_16UC1, 147 * 256));
+  write(k12 / "disp_noc" / "000002_10.png", gt_one<std::uint16_t>(w, h, CV_16UC1, 147 * 256));
   write_text(k12 / "calib" / "000002.txt", kKitti2012Calib);
   // Middlebury 2001-3
   const auto m01 = root / "middlebury2001-3";
@@ -145,6 +146,10 @@ void build_all_layouts(const stdfs::path& root) {
   cv::Mat pfm(h, w, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
   pfm.at<float>(1, 1) = 12.5f;
   write_pfm(m14 / "disp0GT.pfm", pfm, true);
+  cv::Mat nocc(h, w, CV_8UC1, cv::Scalar(0));  // 255 non-occluded, 128 occluded, 0 no GT
+  nocc.at<unsigned char>(1, 1) = 255;
+  nocc.at<unsigned char>(2, 2) = 128;
+  write(m14 / "mask0nocc.png", nocc);
 }
 
 const Frame& find(const std::vector<Frame>& frames, const std::string& set, const std::string& name) {
@@ -206,6 +211,34 @@ TEST(Dataset, DiscoversEveryLayoutWithScalesAndRanges) {
   EXPECT_NEAR(m14.calib.baseline_m, 0.193001, 1e-9);
   EXPECT_NEAR(m14.calib.focal_px, 999.421, 1e-9);
   EXPECT_NEAR(m14.calib.doffs_px, 32.778, 1e-9);
+}
+
+// The non-occluded evaluation area where a set ships it (KITTI disp_noc, MiddEval3 mask0nocc), as a
+// 0 / 255 mask; none elsewhere; an unreadable one is a user error naming the file.
+TEST(Dataset, NonOccludedMasksWhereTheSetShipsThem) {
+  TempDir tmp;
+  build_all_layouts(tmp.path());
+  const auto frames = fs::app::discover_dataset(tmp.path().string());
+  for (const auto& f : frames) {
+    const bool expected = f.set == "kitti2012" || f.set == "middlebury2014-Q";
+    EXPECT_EQ(f.has_noc(), expected) << f.set << "/" << f.name;
+    if (!f.has_noc()) {
+      EXPECT_THROW(fs::app::load_nonoccluded_mask(f), fs::UserError) << f.set;
+      continue;
+    }
+    const cv::Mat m = fs::app::load_nonoccluded_mask(f);
+    ASSERT_EQ(m.type(), CV_8UC1) << f.set;
+    EXPECT_EQ(m.at<unsigned char>(1, 1), 255) << f.set;
+    EXPECT_EQ(cv::countNonZero(m), 1) << f.set << ": occluded (128) and unknown (0) pixels are outside";
+  }
+  Frame bad = find(frames, "middlebury2014-Q", "Motorcycle");
+  bad.noc_path = (tmp.path() / "missing.png").string();
+  try {
+    fs::app::load_nonoccluded_mask(bad);
+    ADD_FAILURE() << "no error for a missing mask";
+  } catch (const fs::UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.png"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Dataset, AcceptsOneSetOrOneSceneFolder) {
@@ -349,6 +382,11 @@ TEST(Dataset, RealDatasetsWhenPresent) {
   double mx = 0;
   cv::minMaxLoc(fs::app::load_ground_truth(k12), nullptr, &mx);
   EXPECT_NEAR(mx, 147.0, 0.05);  // SOURCES.md: disp_occ max 147.0 px
+  // SOURCES.md: disp_noc 28.8 % valid (disp_occ 29.4 %); every non-occluded pixel has GT.
+  ASSERT_TRUE(k12.has_noc());
+  const cv::Mat noc = fs::app::load_nonoccluded_mask(k12);
+  EXPECT_NEAR(100.0 * cv::countNonZero(noc) / double(noc.total()), 28.8, 0.1);
+  EXPECT_EQ(cv::countNonZero(noc & (fs::app::load_ground_truth(k12) == 0.0f)), 0);
 }
 
 }  // namespace

@@ -104,9 +104,33 @@ TEST(EvaluateDisparity, NoGroundTruthGivesZeros) {
   EXPECT_DOUBLE_EQ(m.avg_err, 0.0);
 }
 
+TEST(EvaluateDisparity, AreaScoresOnlyItsPixelsButFillsFromTheWholeMap) {
+  // The known-answer row with px3 (err 4) outside the area: 3 scored pixels. px1 is still filled
+  // from px0 and px2 although px2 has no GT (the fill sees the whole estimate).
+  const cv::Mat gt = row_mat({10, 10, 0, 100, 40});
+  const cv::Mat est = row_mat({10, kInv, 50, 96, 42.5f});
+  cv::Mat area(1, 5, CV_8UC1, cv::Scalar(255));
+  area.at<unsigned char>(0, 3) = 0;
+  const DispMetrics m = evaluate_disparity(est, gt, area);
+  EXPECT_EQ(m.gt_pixels, 3);
+  EXPECT_DOUBLE_EQ(m.avg_err, 2.5 / 3.0);
+  EXPECT_NEAR(m.bad2, 100.0 / 3.0, 1e-9);
+  EXPECT_DOUBLE_EQ(m.bad3, 0.0);
+  EXPECT_NEAR(m.density, 200.0 / 3.0, 1e-9);
+  // An all-255 area scores exactly like no area.
+  const DispMetrics all = evaluate_disparity(est, gt, cv::Mat(1, 5, CV_8UC1, cv::Scalar(255)));
+  const DispMetrics none = evaluate_disparity(est, gt);
+  EXPECT_EQ(all.gt_pixels, none.gt_pixels);
+  EXPECT_DOUBLE_EQ(all.avg_err, none.avg_err);
+}
+
 TEST(EvaluateDisparity, RejectsMismatchedInputs) {
   EXPECT_THROW(evaluate_disparity(row_mat({1, 2}), row_mat({1, 2, 3})), std::invalid_argument);
   EXPECT_THROW(evaluate_disparity(cv::Mat(1, 2, CV_16S), row_mat({1, 2})), std::invalid_argument);
+  EXPECT_THROW(evaluate_disparity(row_mat({1, 2}), row_mat({1, 2}), cv::Mat(1, 3, CV_8UC1, cv::Scalar(255))),
+               std::invalid_argument);
+  EXPECT_THROW(evaluate_disparity(row_mat({1, 2}), row_mat({1, 2}), cv::Mat(1, 2, CV_16UC1, cv::Scalar(1))),
+               std::invalid_argument);
 }
 
 }  // namespace
