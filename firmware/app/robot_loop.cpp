@@ -24,6 +24,7 @@
 #include "fuzzystereo/capture/rectifier.hpp"
 #include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/matcher.hpp"
+#include "fuzzystereo/robot/bodies.hpp"
 #include "fuzzystereo/robot/clock.hpp"
 #include "fuzzystereo/robot/failsafe.hpp"
 #include "fuzzystereo/robot/perception_health.hpp"
@@ -100,8 +101,9 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m;
-  bool stuck_keep_unseen;
+      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m;
+  bool stuck_keep_unseen, body_fit;
+  robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres, ray_centres;
@@ -158,6 +160,18 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
   p.memory_s = v.num("loop.memory_s");
   p.memory_cap_m = v.num("loop.memory_cap_m");
+  p.body_fit = v.flag("loop.body_fit");
+  p.body.link_m = v.num("loop.body_link_m");
+  p.body.min_cells = static_cast<int>(v.integer("loop.body_min_cells"));
+  p.body.min_r_m = v.num("loop.body_min_r_m");
+  p.body.max_r_m = v.num("loop.body_max_r_m");
+  p.body.max_rms_m = v.num("loop.body_max_rms_m");
+  p.body.min_arc_deg = v.num("loop.body_min_arc_deg");
+  p.body_max_free_share = v.num("loop.body_max_free_share");
+  p.body_max_range_m = v.num("loop.body_max_range_m");
+  if (p.body.min_r_m > p.body.max_r_m)
+    throw ConfigError("loop.body_min_r_m (" + std::to_string(p.body.min_r_m) + ") must be <= loop.body_max_r_m (" +
+                      std::to_string(p.body.max_r_m) + ") (in " + v.source + ")");
   return p;
 }
 
@@ -883,10 +897,25 @@ LoopResult RobotLoop::run() {
     std::vector<CircleObstacle> obstacles = world_map.obstacles(pose.pos(), lp.plan_radius_m, lp.blocked_confirm_range_m);
     // Where each planner obstacle came from (record only): m = map cell, f = map cell seen only
     // from afar (unconfirmed), v = moving track, n = near-track net, r = reachable set of an
-    // out-of-view mover.
+    // out-of-view mover, l = of a lost track, g = unseen ground ahead, b = body fitted to map cells.
     std::string kinds(obstacles.size(), 'm');
     for (std::size_t i = 0; i < obstacles.size(); ++i)
       if (obstacles[i].unconfirmed) kinds[i] = 'f';
+    // body_fit (session 34): the hidden sides of round obstacles the map holds only an arc of
+    // (robot/bodies.hpp), as transient static circles (kind b); a fit that claims space the camera
+    // saw through (the inside of a concave group) is dropped.
+    if (lp.body_fit) {
+      // Only cells hit from within body_max_range_m: the depth noise grows with Z^2 and far cells
+      // scatter off the surface (the arcs the fit needs are the ones the robot passed near).
+      std::vector<CircleObstacle> near_cells;
+      for (const CircleObstacle& c : obstacles)
+        if (world_map.nearest_hit_m(c.c) <= lp.body_max_range_m) near_cells.push_back(c);
+      for (const robot::FittedBody& b : robot::fit_bodies(near_cells, pose.pos(), lp.body)) {
+        if (world_map.seen_free_share(b.circle.c, b.circle.r, -world_map.params().miss) > lp.body_max_free_share) continue;
+        obstacles.push_back(b.circle);
+        kinds.push_back('b');
+      }
+    }
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();

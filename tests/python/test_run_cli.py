@@ -7,6 +7,7 @@ simulated clock, faster than real time.
 from __future__ import annotations
 
 import json
+import math
 import re
 import subprocess
 
@@ -56,6 +57,31 @@ def test_ground_seen_ahead_goes_round_an_obstacle_the_camera_cannot_see(firmware
         assert r["status"] == "reached" and not r["collided"], r
         assert r["ground_stops"] > 0 and frames[0].get("ground_stop") is True
         assert frames[0]["cmd"][0] == 0.0  # no forward motion on the first frame
+
+
+@pytest.mark.parametrize("body_fit", [False, True])
+def test_body_fit_completes_a_post_from_its_visible_arc(firmware_bin, common_dir, tmp_path, body_fit):
+    # A bricks post (r 0.30 m at (2.0, 0.55)) beside the way to the goal. The map holds the arc the
+    # camera saw; with [loop] body_fit the planner also gets the circle fitted to it (plan kind b,
+    # docs/robot.md "Session 34"): the whole post, within a few cm, and nothing elsewhere.
+    cfg = tmp_path / "b.toml"
+    cfg.write_text(f"[loop]\nbody_fit = {'true' if body_fit else 'false'}\n")
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/round_post.toml'}", "--quiet",
+            "--config", str(cfg), "--json", str(out), "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["status"] == "reached" and not r["collided"], r
+    frames = [json.loads(line) for line in (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()]
+    planned = [f for f in frames if "plan_obstacles" in f]
+    assert len(planned) >= 5
+    bodies = [o for f in planned for o, k in zip(f["plan_obstacles"], f["plan_kinds"]) if k == "b"]
+    if not body_fit:
+        assert not bodies
+        return
+    assert len(bodies) >= len(planned) - 2  # from the first frames with the near side in range on
+    for x, y, radius in bodies:
+        assert math.hypot(x - 2.0, y - 0.55) < 0.08 and abs(radius - 0.30) < 0.06, (x, y, radius)
 
 
 def test_watchdog_stops_motors_after_a_stall(firmware_bin, common_dir):

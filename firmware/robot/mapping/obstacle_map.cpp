@@ -137,6 +137,21 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m,
   return out;
 }
 
+double ObstacleMap::seen_free_share(Vec2 c, double r, double l_free) const {
+  if (!init_) return 0.0;
+  int x0, y0, x1, y1;
+  cell_window(c, r, x0, y0, x1, y1);
+  int inside = 0, free = 0;
+  for (int iy = y0; iy <= y1; ++iy)
+    for (int ix = x0; ix <= x1; ++ix) {
+      const Vec2 centre{origin_.x + (ix + 0.5) * p_.cell_m, origin_.y + (iy + 0.5) * p_.cell_m};
+      if (norm(centre - c) > r) continue;
+      ++inside;
+      if (logodds_[static_cast<std::size_t>(iy) * n_ + ix] <= static_cast<float>(l_free)) ++free;
+    }
+  return inside > 0 ? double(free) / inside : 0.0;
+}
+
 int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns, int min_frames) const {
   if (!init_) return 0;
   int x0, y0, x1, y1;

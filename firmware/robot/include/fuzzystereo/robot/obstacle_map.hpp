@@ -53,6 +53,10 @@ class ObstacleMap {
   // the cell is not occupied or off the grid.
   double nearest_hit_m(Vec2 p) const;
   int occupied_count() const;
+  // Share of the cells whose centres lie inside the disc (c, r) that the camera has seen through
+  // (log-odds <= l_free): free space the disc would wrongly claim (bodies.hpp: a circle fitted to the
+  // inside of a concave group of cells covers space the camera saw free). 0 for an empty disc.
+  double seen_free_share(Vec2 c, double r, double l_free) const;
   // Occupied cells whose mean hit point lies within r of c and that have been occupied without a
   // break since a scan at or before t_ns (a cell that drops below l_occupied starts again).
   // Tells a static obstacle from a mover at the same place: a mover's surface cells become
