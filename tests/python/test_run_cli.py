@@ -226,6 +226,18 @@ def test_record_stops_below_its_free_space_limits(firmware_bin, common_dir, tmp_
         assert "record_warning" not in r
 
 
+@pytest.mark.parametrize("text, message", [
+    ("[loop]\nbody_min_r_m = 0.7\nbody_max_r_m = 0.6\n", "loop.body_min_r_m (0.700000) must be <= loop.body_max_r_m"),
+    ("[loop]\nbody_max_rms_m = -1\n", "body_max_rms_m"),
+])
+def test_bad_body_fit_config_is_a_clear_error(firmware_bin, common_dir, tmp_path, text, message):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(text)
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--config", str(cfg),
+            "--max-frames", "2")
+    assert p.returncode != 0 and message in p.stderr, p.stderr
+
+
 def test_bad_goal_is_a_clear_error(firmware_bin, common_dir):
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--goal", "x")
     assert p.returncode == 2
