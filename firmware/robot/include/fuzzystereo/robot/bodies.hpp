@@ -1,4 +1,5 @@
-// Hidden sides of mapped obstacles (session 34, `[loop] body_*`, off by default).
+// Hidden sides of mapped obstacles (session 34, `[loop] body_*`; the default since the fresh-seed
+// rule of docs/robot.md "Session 34" passed).
 //
 // The stereo camera sees an obstacle's front surface only, so the map (obstacle_map.hpp) holds the
 // arc of it that faced the camera when it was in view. A robot that later drives round the
