@@ -35,6 +35,18 @@ def test_mission_reaches_goal_without_collision(firmware_bin, common_dir, tmp_pa
     assert max(f["map_cells"] for f in frames) > 0
 
 
+def run_recorded_scene(firmware_bin, scene, tmp_path, config_text):
+    """`run` on a scene with a config and a record: (result JSON, the record's frames)."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(config_text)
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--config", str(cfg), "--json", str(out),
+            "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    frames = [json.loads(line) for line in (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()]
+    return json.loads(out.read_text()), frames
+
+
 @pytest.mark.parametrize("min_pct", [0, 40])
 def test_ground_seen_ahead_goes_round_an_obstacle_the_camera_cannot_see(firmware_bin, common_dir, tmp_path, min_pct):
     # A plain dark cylinder 5 cm in front of the body, the goal behind it: too near and too plain to
@@ -42,14 +54,8 @@ def test_ground_seen_ahead_goes_round_an_obstacle_the_camera_cannot_see(firmware
     # ([robot] ground_ahead_min_pct = 0) the robot drives into it; with it the stop engages on the
     # first frame, the planner gets an obstacle where the robot would have driven, and the robot goes
     # round (docs/robot.md "Session 32").
-    cfg = tmp_path / "g.toml"
-    cfg.write_text(f"[robot]\nground_ahead_min_pct = {min_pct}\n")
-    out = tmp_path / "r.json"
-    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/near_wall.toml'}", "--quiet",
-            "--config", str(cfg), "--json", str(out), "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
-    assert p.returncode == 0, p.stderr
-    r = json.loads(out.read_text())
-    frames = [json.loads(line) for line in (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()]
+    r, frames = run_recorded_scene(firmware_bin, common_dir / "sim/scenes/near_wall.toml", tmp_path,
+                                   f"[robot]\nground_ahead_min_pct = {min_pct}\n")
     assert frames[0]["ground_ahead_pct"] < 10.0  # holes and speckle in front
     if min_pct == 0:
         assert r["collided"] and r["ground_stops"] == 0, r
@@ -64,15 +70,9 @@ def test_body_fit_completes_a_post_from_its_visible_arc(firmware_bin, common_dir
     # A bricks post (r 0.30 m at (2.0, 0.55)) beside the way to the goal. The map holds the arc the
     # camera saw; with [loop] body_fit the planner also gets the circle fitted to it (plan kind b,
     # docs/robot.md "Session 34"): the whole post, within a few cm, and nothing elsewhere.
-    cfg = tmp_path / "b.toml"
-    cfg.write_text(f"[loop]\nbody_fit = {'true' if body_fit else 'false'}\n")
-    out = tmp_path / "r.json"
-    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/round_post.toml'}", "--quiet",
-            "--config", str(cfg), "--json", str(out), "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
-    assert p.returncode == 0, p.stderr
-    r = json.loads(out.read_text())
+    r, frames = run_recorded_scene(firmware_bin, common_dir / "sim/scenes/round_post.toml", tmp_path,
+                                   f"[loop]\nbody_fit = {'true' if body_fit else 'false'}\n")
     assert r["status"] == "reached" and not r["collided"], r
-    frames = [json.loads(line) for line in (tmp_path / "rec" / "frames.jsonl").read_text().splitlines()]
     planned = [f for f in frames if "plan_obstacles" in f]
     assert len(planned) >= 5
     bodies = [o for f in planned for o, k in zip(f["plan_obstacles"], f["plan_kinds"]) if k == "b"]
