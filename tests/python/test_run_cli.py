@@ -82,6 +82,13 @@ def test_body_fit_completes_a_post_from_its_visible_arc(firmware_bin, common_dir
     assert len(bodies) >= len(planned) - 2  # from the first frames with the near side in range on
     for x, y, radius in bodies:
         assert math.hypot(x - 2.0, y - 0.55) < 0.08 and abs(radius - 0.30) < 0.06, (x, y, radius)
+    # the run report draws the last planned frame's cells and bodies beside the true post
+    from fuzzyctl.runreport import plan_view, write_report
+
+    cells, last_bodies = plan_view(frames)
+    assert len(last_bodies) == 1 and cells and last_bodies[0] == planned[-1]["plan_obstacles"][
+        planned[-1]["plan_kinds"].index("b")]
+    assert "<img" in write_report(tmp_path / "rec", tmp_path / "report.html").read_text()
 
 
 def test_watchdog_stops_motors_after_a_stall(firmware_bin, common_dir):

@@ -78,6 +78,19 @@ def _obstacle_patch(o: dict[str, Any], t: float, **style):
     return Circle((x, y), o.get("radius", 0.25), **style)
 
 
+def plan_view(frames: list[dict[str, Any]]) -> tuple[list[list[float]], list[list[float]]] | None:
+    """The planner's static world in the last frame that recorded it: (map cells, fitted bodies) as [x, y, r]
+    lists (``plan_obstacles`` with ``plan_kinds`` m / f and b); None when no frame has them."""
+    for f in reversed(frames):
+        obs, kinds = f.get("plan_obstacles"), f.get("plan_kinds")
+        if obs is None or kinds is None:
+            continue
+        cells = [o for o, k in zip(obs, kinds) if k in "mf"]
+        bodies = [o for o, k in zip(obs, kinds) if k == "b"]
+        return cells, bodies
+    return None
+
+
 def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
     import matplotlib
 
@@ -109,6 +122,19 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
     for i, (tid, pts) in enumerate(sorted(tracks.items())):
         xs, ys = zip(*pts)
         ax.scatter(xs, ys, s=4, color=cmap(i % 10), alpha=0.5, label="tracks" if i == 0 else None)
+    # What the planner saw in the last frame that recorded it (every 10th frame): the map's cells as dots and
+    # the bodies fitted to them (kind b, [loop] body_fit) as dashed circles — beside the true obstacles above.
+    planned = plan_view(frames)
+    if planned is not None:
+        from matplotlib.patches import Circle
+
+        cells, bodies = planned
+        if cells:
+            ax.scatter([c[0] for c in cells], [c[1] for c in cells], s=2, color="tab:purple", alpha=0.6,
+                       label="map cells (last plan)")
+        for i, (bx, by, br) in enumerate(bodies):
+            ax.add_patch(Circle((bx, by), br, fill=False, color="tab:pink", linestyle="--", lw=1.5,
+                                label="bodies (last plan)" if i == 0 else None))
     if frames:
         if all("true_pose" in f for f in frames):
             tx = [f["true_pose"][0] for f in frames]
