@@ -1,11 +1,13 @@
 // Hidden sides of mapped obstacles: circles fitted to groups of occupied map cells (bodies.hpp).
 // Why hand-written: the fits are 3x3 least-squares problems solved with Eigen; the grouping is a
-// sweep over cells sorted by x with a union-find (a few hundred cells per frame).
+// bucket hash with a union-find (a few hundred cells per frame).
 #include "fuzzystereo/robot/bodies.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
+#include <unordered_map>
 
 #include <Eigen/Dense>
 
@@ -104,20 +106,28 @@ std::vector<FittedBody> fit_bodies(const std::vector<CircleObstacle>& cells, Vec
   std::vector<FittedBody> out;
   const std::size_t n = cells.size();
   if (n == 0 || p.min_cells < 3) return out;
-  // Single linkage within link_m: a sweep over the cells sorted by x.
-  std::vector<int> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return cells[std::size_t(a)].c.x < cells[std::size_t(b)].c.x; });
+  // Single linkage within link_m: cells hashed into square buckets of side link_m, each cell checked
+  // against the cells of its own and the 8 neighbouring buckets (linear in the number of cells whatever
+  // their layout; a sweep over x degenerates to all pairs along a wall parallel to the y axis).
+  const double inv = 1.0 / p.link_m;
+  std::unordered_map<std::int64_t, std::vector<int>> buckets;
+  const auto key = [](std::int64_t bx, std::int64_t by) { return (bx << 32) ^ (by & 0xffffffff); };
+  std::vector<std::int64_t> bx(n), by(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    bx[i] = static_cast<std::int64_t>(std::floor(cells[i].c.x * inv));
+    by[i] = static_cast<std::int64_t>(std::floor(cells[i].c.y * inv));
+    buckets[key(bx[i], by[i])].push_back(int(i));
+  }
   UnionFind uf(n);
   const double l2 = p.link_m * p.link_m;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec2 a = cells[std::size_t(order[i])].c;
-    for (std::size_t j = i + 1; j < n; ++j) {
-      const Vec2 b = cells[std::size_t(order[j])].c;
-      if (b.x - a.x > p.link_m) break;
-      if (norm2(b - a) <= l2) uf.unite(order[i], order[j]);
-    }
-  }
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::int64_t dy = -1; dy <= 1; ++dy)
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const auto it = buckets.find(key(bx[i] + dx, by[i] + dy));
+        if (it == buckets.end()) continue;
+        for (const int j : it->second)
+          if (j > int(i) && norm2(cells[std::size_t(j)].c - cells[i].c) <= l2) uf.unite(int(i), j);
+      }
   // Groups in the order of their first cell (the root is the smallest index).
   std::vector<std::vector<Vec2>> groups;
   std::vector<int> group_of(n, -1);

@@ -118,6 +118,20 @@ TEST(FitBodies, GroupsAreSplitAtTheLinkDistance) {
   EXPECT_TRUE(fit_bodies(as_cells(pts), {0, 0}, p).empty());
 }
 
+TEST(FitBodies, ALongWallAlongYIsOneGroupWithoutABody) {
+  // 2000 cells 2.5 cm apart on the line x = 1 (all with one x: the layout that makes an x-sorted sweep
+  // compare all pairs) plus a post: one straight group (no circle) and the post's body.
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 2000; ++i) pts.push_back({1.0, -25.0 + 0.025 * i});
+  const std::vector<Vec2> post = arc_points({3.0, 0.0}, 0.3, 120, 240, 12, 0.0, 10);
+  pts.insert(pts.end(), post.begin(), post.end());
+  const auto bodies = fit_bodies(as_cells(pts), {0.0, 0.0}, BodyFitParams{});
+  ASSERT_EQ(bodies.size(), 1u);
+  EXPECT_NEAR(bodies[0].circle.c.x, 3.0, 1e-6);
+  EXPECT_NEAR(bodies[0].circle.r, 0.3, 1e-6);
+  EXPECT_EQ(bodies[0].cells, 12);
+}
+
 TEST(ObstacleMap, SeenFreeShareCountsTheCellsTheCameraSawThrough) {
   ObstacleMap map;
   CameraScan s;
