@@ -105,7 +105,7 @@ CircleFit fit_circle(const std::vector<Vec2>& pts) {
 std::vector<FittedBody> fit_bodies(const std::vector<CircleObstacle>& cells, Vec2 robot, const BodyFitParams& p) {
   std::vector<FittedBody> out;
   const std::size_t n = cells.size();
-  if (n == 0 || p.min_cells < 3) return out;
+  if (n == 0 || p.min_cells < 3 || !(p.link_m > 0.0)) return out;  // the config keeps link_m >= 0.01
   // Single linkage within link_m: cells hashed into square buckets of side link_m, each cell checked
   // against the cells of its own and the 8 neighbouring buckets (linear in the number of cells whatever
   // their layout; a sweep over x degenerates to all pairs along a wall parallel to the y axis).
