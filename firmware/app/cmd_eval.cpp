@@ -145,9 +145,10 @@ void run_eval(const EvalOptions& o) {
     std::string line;
     char buf[160];
     auto record = [&](const std::string& method, const cv::Mat& disp, double ms) {
-      const DispMetrics m = evaluate_disparity(disp, gt);
+      const cv::Mat filled = fill_invalid_kitti(disp);  // once for both areas
+      const DispMetrics m = evaluate_filled(disp, filled, gt);
       acc[f.set][method].add(m, ms);
-      if (!noc.empty()) acc_noc[f.set][method].add(evaluate_disparity(disp, gt, noc), ms);
+      if (!noc.empty()) acc_noc[f.set][method].add(evaluate_filled(disp, filled, gt, noc), ms);
       std::snprintf(buf, sizeof buf, " | %s %.1f ms d1 %.2f%% bad3 %.2f%% dens %.1f%%", method.c_str(), ms, m.d1,
                     m.bad3, m.density);
       line += buf;

@@ -92,10 +92,16 @@ cv::Mat fill_invalid_kitti(const cv::Mat& disp) {
 DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt, const cv::Mat& area) {
   if (est.type() != CV_32FC1 || gt.type() != CV_32FC1)
     throw std::invalid_argument("evaluate_disparity: expected CV_32FC1 estimate and ground truth");
-  if (est.size() != gt.size()) throw std::invalid_argument("evaluate_disparity: estimate and ground truth sizes differ");
+  return evaluate_filled(est, fill_invalid_kitti(est), gt, area);
+}
+
+DispMetrics evaluate_filled(const cv::Mat& est, const cv::Mat& filled, const cv::Mat& gt, const cv::Mat& area) {
+  if (est.type() != CV_32FC1 || filled.type() != CV_32FC1 || gt.type() != CV_32FC1)
+    throw std::invalid_argument("evaluate_disparity: expected CV_32FC1 estimate and ground truth");
+  if (est.size() != gt.size() || filled.size() != gt.size())
+    throw std::invalid_argument("evaluate_disparity: estimate and ground truth sizes differ");
   if (!area.empty() && (area.type() != CV_8UC1 || area.size() != gt.size()))
     throw std::invalid_argument("evaluate_disparity: the evaluation area must be CV_8UC1 of the ground truth's size");
-  const cv::Mat filled = fill_invalid_kitti(est);
 
   // KITTI thresholds (evaluate_stereo.cpp: ABS_THRESH = 3, REL_THRESH = 0.05).
   constexpr double kAbsThresh = 3.0, kRelThresh = 0.05, kBad2 = 2.0;

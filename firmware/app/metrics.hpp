@@ -44,4 +44,7 @@ cv::Mat fill_invalid_kitti(const cv::Mat& disp);
 // std::invalid_argument when sizes/types differ.
 DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt, const cv::Mat& area = cv::Mat());
 
+// The same from a map already filled (filled = fill_invalid_kitti(est)): one fill for several areas.
+DispMetrics evaluate_filled(const cv::Mat& est, const cv::Mat& filled, const cv::Mat& gt, const cv::Mat& area = cv::Mat());
+
 }  // namespace fs::app

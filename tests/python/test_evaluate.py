@@ -115,7 +115,7 @@ def test_non_occluded_masks_where_the_set_ships_them(tmp_path):
     _png(k12 / "disp_occ" / "000001_10.png", value=512, dtype=np.uint16)
     noc = np.full((4, 6), 512, np.uint16)
     noc[:, :2] = 0  # occluded band
-    _png(k12 / "disp_noc" / "000001_10.png", value=0, dtype=np.uint16)
+    (k12 / "disp_noc").mkdir(parents=True)
     cv2.imwrite(str(k12 / "disp_noc" / "000001_10.png"), noc)
     mq = tmp_path / "MiddEval3" / "trainingQ" / "Motor"
     _png(mq / "im0.png"), _png(mq / "im1.png")

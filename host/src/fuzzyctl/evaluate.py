@@ -32,7 +32,7 @@ from . import firmware
 from .config import Config, load_config
 from .dataset import Frame, load_ground_truth, load_nonoccluded_mask
 from .errors import FatalError, load_json
-from .metrics import FIGURES, DispMetrics, disp_q4_to_float, evaluate_disparity, set_means
+from .metrics import FIGURES, DispMetrics, disp_q4_to_float, evaluate_disparity, fill_invalid_kitti, set_means
 
 SOURCES = ("reference", "firmware")
 METHOD = {"reference": "reference", "firmware": "fuzzystereo"}  # method names in the JSON
@@ -114,14 +114,15 @@ def score_frame(frame: Frame, source: str, config_path: str | Path | None = None
     if gt.shape != disp.shape:
         raise FatalError(f"ground truth '{frame.gt_path}' is {gt.shape[1]}x{gt.shape[0]} but the disparity map of "
                          f"{frame.key} is {disp.shape[1]}x{disp.shape[0]}")
+    filled = fill_invalid_kitti(disp)  # once for both areas
     noc = None
     if frame.has_noc:
         mask = load_nonoccluded_mask(frame)
         if mask.shape != gt.shape:
             raise FatalError(f"non-occlusion mask '{frame.noc_path}' is {mask.shape[1]}x{mask.shape[0]} but ground truth "
                              f"'{frame.gt_path}' is {gt.shape[1]}x{gt.shape[0]}")
-        noc = evaluate_disparity(disp, gt, mask)
-    return FrameScore(frame, evaluate_disparity(disp, gt), ms, noc)
+        noc = evaluate_disparity(disp, gt, mask, filled=filled)
+    return FrameScore(frame, evaluate_disparity(disp, gt, filled=filled), ms, noc)
 
 
 def scorer(source: str, **kwargs) -> partial:

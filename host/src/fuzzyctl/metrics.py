@@ -83,17 +83,22 @@ def fill_invalid_kitti(disp: np.ndarray) -> np.ndarray:
     return out
 
 
-def evaluate_disparity(est: np.ndarray, gt: np.ndarray, area: np.ndarray | None = None) -> DispMetrics:
+def evaluate_disparity(est: np.ndarray, gt: np.ndarray, area: np.ndarray | None = None,
+                       filled: np.ndarray | None = None) -> DispMetrics:
     """Metrics of ``est`` against ``gt`` (float32 maps of one shape, conventions above). With ``area``
     (bool, same shape) only the GT-valid pixels inside it are scored; the filling still sees the
-    whole map (the firmware's evaluate_disparity with an evaluation area)."""
+    whole map (the firmware's evaluate_disparity with an evaluation area). ``filled``: the map
+    already filled (``fill_invalid_kitti(est)``), so several areas share one fill (evaluate_filled)."""
     est = np.asarray(est, dtype=np.float32)
     gt = np.asarray(gt, dtype=np.float32)
     if est.shape != gt.shape:
         raise ValueError(f"estimate {est.shape} and ground truth {gt.shape} sizes differ")
     if area is not None and np.shape(area) != gt.shape:
         raise ValueError(f"evaluation area {np.shape(area)} and ground truth {gt.shape} sizes differ")
-    filled = fill_invalid_kitti(est)
+    if filled is None:
+        filled = fill_invalid_kitti(est)
+    elif np.shape(filled) != gt.shape:
+        raise ValueError(f"filled map {np.shape(filled)} and ground truth {gt.shape} sizes differ")
     g_ok = gt_valid(gt)
     if area is not None:
         g_ok &= np.asarray(area, dtype=bool)

@@ -97,6 +97,8 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from matplotlib.patches import Circle
+
     fig, ax = plt.subplots(figsize=(8, 6.5))
     t_end = frames[-1]["t"] if frames else 0.0
     for o in run.get("world", {}).get("obstacles", []):
@@ -126,8 +128,6 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
     # the bodies fitted to them (kind b, [loop] body_fit) as dashed circles — beside the true obstacles above.
     planned = plan_view(frames)
     if planned is not None:
-        from matplotlib.patches import Circle
-
         cells, bodies = planned
         if cells:
             ax.scatter([c[0] for c in cells], [c[1] for c in cells], s=2, color="tab:purple", alpha=0.6,
@@ -144,8 +144,6 @@ def trajectory_figure(run: dict[str, Any], frames: list[dict[str, Any]]):
         ey = [f["pose"][1] for f in frames]
         ax.plot(ex, ey, "--", color="tab:orange", lw=1.2, label="robot (odometry)")
         last = frames[-1].get("true_pose", frames[-1]["pose"])
-        from matplotlib.patches import Circle
-
         ax.add_patch(Circle((last[0], last[1]), run.get("robot_radius_m", 0.2), fill=False, color="tab:blue"))
     start = run.get("start")
     goal = run.get("goal")
