@@ -878,6 +878,13 @@ LoopResult RobotLoop::run() {
       return std::fabs(robot::bearing_of(pose, p)) < half_fov - 0.05;
     };
     tracker.step(t_frame - t0, meas, [&](Vec2 p) { return !perception_fault && visible(p); });
+    if (I.tp.static_gate_m > 0) {
+      // [tracker] static_gate_m: the tracks with static support keep to their obstacle next frame.
+      std::vector<int> static_ids;
+      for (const auto& tr : tracker.tracks())
+        if (static_support(tr)) static_ids.push_back(tr.id);
+      tracker.mark_static(static_ids);
+    }
     if (lp.reach_lost_tracks || lp.look_before_turn_m > 0 || I.pp.w_memory > 0) lost_tracks.update(tracker.tracks(), t_frame - t0, I.pp.w_memory > 0 ? std::max(lp.moving_max_age_s, lp.memory_s) : lp.moving_max_age_s);
     stage_ms["track"].push_back(wall_ms_since(s1));
 

@@ -57,6 +57,7 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.miss_movers_only = v.flag("tracker.miss_movers_only");
   p.velocity_measurement = v.flag("tracker.velocity_measurement");
   p.max_speed_mps = v.num("tracker.max_speed_mps");
+  p.static_gate_m = v.num("tracker.static_gate_m");
   return p;
 }
 

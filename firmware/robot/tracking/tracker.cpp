@@ -35,6 +35,10 @@ void MultiTracker::mark_movers(const std::vector<int>& ids) {
   for (Track& tr : tracks_) tr.mover = std::find(ids.begin(), ids.end(), tr.id) != ids.end();
 }
 
+void MultiTracker::mark_static(const std::vector<int>& ids) {
+  for (Track& tr : tracks_) tr.static_obstacle = std::find(ids.begin(), ids.end(), tr.id) != ids.end();
+}
+
 std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std::vector<ObstacleMeasurement>& meas,
                                                     const VisibilityFn& visible) {
   // 1. predict every track to t (eq. 26).
@@ -73,6 +77,14 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       const double speed_gate = p_.max_speed_mps * dtm + kSpeedGateSigmas * std::sqrt(sigma * sigma + tr.last_meas_var) +
                                 std::abs(m.radius_m - tr.last_meas_radius_m);
       if (p_.max_speed_mps > 0 && norm(m.p - tr.last_meas_p) > speed_gate) continue;
+      // Identity gate of static obstacles: a static obstacle does not move, so a measurement
+      // further than static_gate_m from its track's last one is something else, and a measurement
+      // on old map cells is not a far-off track's. Without it a static obstacle's track that had
+      // coasted out of view for seconds (its gate grown to gate_max_m) took over a mover's
+      // measurements 1-2 m away, and the loop's moving test, judging the track's whole-life
+      // travel, never believed it moved (8 of 23 contacts, seeds 93-104; docs/robot.md "Session 35").
+      if (p_.static_gate_m > 0 && (tr.static_obstacle || m.static_cells) && norm(m.p - tr.last_meas_p) > p_.static_gate_m)
+        continue;
       cands.push_back({d, ti, mi});
     }
   }

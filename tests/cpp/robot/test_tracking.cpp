@@ -532,11 +532,73 @@ TEST(Tracker, SpeedGateStopsWallFragmentsChainingButKeepsAMover) {
   EXPECT_GT(fastest, 1.0);
 }
 
+// [tracker] static_gate_m: a static obstacle's confirmed track coasts out of view for 5 s (its gate
+// grows to gate_max_m); a mover then appears 1.4 m from it. Without the identity gate the old track
+// takes the mover over (the loop's moving test later judges that track's whole-life travel and
+// never believes it moves: suite-98-0, docs/robot.md "Session 35"); with it the mover starts a track
+// of its own and the static track stays where its obstacle is. A measurement on old map cells
+// (static_cells) is likewise not taken by a far-off mover's track.
+TEST(Tracker, StaticGateKeepsAStaticTrackOffAFarMover) {
+  const Vec2 post{2.3, 0.1}, mover0{3.0, -1.1};
+  const auto run = [&](double static_gate_m, bool mark) {
+    TrackerParams tp;
+    tp.static_gate_m = static_gate_m;
+    MultiTracker mt(tp);
+    bool in_view = true;
+    auto vis = [&](Vec2) { return in_view; };
+    int f = 0;
+    for (; f < 6; ++f) mt.step(s_to_ns(0.2 * f), {{post, 0.12, 0, 0.05}}, vis);
+    const int post_id = mt.tracks().at(0).id;
+    if (mark) mt.mark_static({post_id});
+    in_view = false;  // the robot turns away: the post's track coasts
+    for (; f < 31; ++f) mt.step(s_to_ns(0.2 * f), {}, vis);
+    in_view = true;
+    for (int k = 0; k < 5; ++k, ++f)
+      mt.step(s_to_ns(0.2 * f), {{mover0 + Vec2{-0.05 * k, -0.04 * k}, 0.15, 0, 0.05}}, vis);
+    // Did the post's track take the mover's measurements (its last one near the mover now)?
+    bool taken = false;
+    int mover_tracks = 0;
+    for (const Track& tr : mt.tracks()) {
+      const bool on_mover = norm(tr.last_meas_p - mover0) < 0.5;
+      if (on_mover && tr.id == post_id) taken = true;
+      if (on_mover && tr.id != post_id) ++mover_tracks;
+    }
+    return std::make_pair(taken, mover_tracks);
+  };
+  const auto [taken_off, own_off] = run(0.0, true);
+  EXPECT_TRUE(taken_off) << "without the gate the static track takes the mover over (the test can fail)";
+  EXPECT_EQ(own_off, 0);
+  const auto [taken_on, own_on] = run(0.6, true);
+  EXPECT_FALSE(taken_on);
+  EXPECT_EQ(own_on, 1);  // the mover's own track
+  const auto [taken_unmarked, own_unmarked] = run(0.6, false);
+  EXPECT_TRUE(taken_unmarked) << "a track the loop did not mark static keeps the ordinary gate";
+  EXPECT_EQ(own_unmarked, 0);
+
+  // A measurement on old map cells is not taken by a coasting track 1.2 m away (not marked static).
+  TrackerParams tp;
+  tp.static_gate_m = 0.6;
+  MultiTracker mt(tp);
+  bool in_view = true;
+  auto vis = [&](Vec2) { return in_view; };
+  int f = 0;
+  for (; f < 6; ++f) mt.step(s_to_ns(0.2 * f), {{{2.0 + 0.05 * f, 0.0}, 0.15, 0, 0.05}}, vis);
+  in_view = false;
+  for (; f < 21; ++f) mt.step(s_to_ns(0.2 * f), {}, vis);
+  in_view = true;
+  ObstacleMeasurement old_cells{{2.5, 1.2}, 0.15, 0, 0.05};
+  old_cells.static_cells = true;
+  mt.step(s_to_ns(0.2 * f), {old_cells}, vis);
+  ASSERT_EQ(mt.tracks().size(), 2u);
+  EXPECT_LT(norm(mt.tracks()[0].last_meas_p - Vec2{2.25, 0.0}), 1e-9);
+}
+
 TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   const Config c = parse_config("", "default.toml");
   const TrackerParams t = tracker_params_from(c.values), d;
   EXPECT_DOUBLE_EQ(t.pos_sigma_m, d.pos_sigma_m);
   EXPECT_DOUBLE_EQ(t.max_speed_mps, d.max_speed_mps);
+  EXPECT_DOUBLE_EQ(t.static_gate_m, d.static_gate_m);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
   EXPECT_EQ(t.max_misses, d.max_misses);
   EXPECT_DOUBLE_EQ(t.miss_sigmas, d.miss_sigmas);

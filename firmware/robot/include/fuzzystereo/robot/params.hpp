@@ -66,6 +66,10 @@ struct TrackerParams {
                                     // from the track's last one than this speed (+ noise) allows is
                                     // not its [m/s]; 0 = off (docs/robot.md "Session 8": 0.5 measured
                                     // with the nav8 fields, not the default)
+  double static_gate_m = 0.0;       // identity gate of static obstacles: a track the loop marked static
+                                    // (MultiTracker::mark_static: static support) or a measurement on
+                                    // old map cells (static_cells) pair only within this distance of
+                                    // the track's last measurement [m]; 0 = off (docs/robot.md "Session 35")
 };
 
 // [planner] — global grid A* + sampled-arc local planner.

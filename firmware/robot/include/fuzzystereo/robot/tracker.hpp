@@ -66,6 +66,7 @@ struct Track {
   double nis_mean = 2.0;        // faded mean of the position NIS (maneuver switch; 2 = the chi-square mean)
   bool maneuvering = false;     // Q level: accel_sigma_mps2 (true) or accel_sigma_steady_mps2
   bool mover = false;           // the loop's moving test passed at its last planning step (mark_movers)
+  bool static_obstacle = false; // the loop found it static (static support) at its last step (mark_static)
   // The last kRecentMeas measured positions with their times, oldest first (the loop's moving test
   // over a recent window, [loop] moving_window_s).
   static constexpr std::size_t kRecentMeas = 32;
@@ -109,6 +110,9 @@ class MultiTracker {
   // The robot loop's verdict for the next step: the tracks with these ids are movers, every other
   // one is not (TrackerParams::miss_movers_only).
   void mark_movers(const std::vector<int>& ids);
+  // The robot loop's verdict for the next step: the tracks with these ids are static obstacles'
+  // (TrackerParams::static_gate_m), every other one is not.
+  void mark_static(const std::vector<int>& ids);
 
  private:
   // The maneuver switch is on (accel_sigma_steady_mps2 > 0), and a track's Q level.
