@@ -40,6 +40,7 @@ struct EvalOptions {
   std::string dataset;
   std::vector<std::string> baselines;
   std::string radiometric = "none";
+  std::uint64_t noise_seed = kRadioNoiseSeed;  // --noise-seed (radiometric "noise" only)
   std::string config;
   std::string json;
   std::string out;
@@ -138,7 +139,7 @@ void run_eval(const EvalOptions& o) {
       throw UserError("non-occlusion mask '" + f.noc_path + "' is " + std::to_string(noc.cols) + "x" +
                       std::to_string(noc.rows) + " but ground truth '" + f.gt_path + "' is " +
                       std::to_string(gt.cols) + "x" + std::to_string(gt.rows));
-    if (o.radiometric != "none") im.right = apply_radiometric(im.right, o.radiometric);
+    if (o.radiometric != "none") im.right = apply_radiometric(im.right, o.radiometric, o.noise_seed);
     const cv::Mat left_gray = to_gray(im.left), right_gray = to_gray(im.right);
     if (std::find(set_order.begin(), set_order.end(), f.set) == set_order.end()) set_order.push_back(f.set);
 
@@ -224,8 +225,10 @@ void run_eval(const EvalOptions& o) {
       if (acc_noc.count(s) != 0) sets[s][m]["noc"] = figures(acc_noc[s][m]);
     }
   }
+  const std::string radio =
+      o.radiometric == "noise" ? "noise, seed " + std::to_string(o.noise_seed) : o.radiometric;
   std::printf("(threads %d; radiometric '%s'; figures are per-frame means over all pixels with ground truth; errors after KITTI hole filling)\n",
-              threads, o.radiometric.c_str());
+              threads, radio.c_str());
   if (!acc_noc.empty()) {
     std::printf("\nnon-occluded pixels only (sets that ship a mask: KITTI disp_noc, MiddEval3 mask0nocc)\n");
     header();
@@ -253,6 +256,10 @@ void add_eval_command(CLI::App& app) {
       ->delimiter(',');
   cmd->add_option("--radiometric", opts->radiometric,
                   "Distortion applied to the right image: none, gain, gamma, mixed, noise")
+      ->capture_default_str();
+  cmd->add_option("--noise-seed", opts->noise_seed,
+                  "Seed of the noise field of --radiometric noise (default: the fixed seed of docs/results.md); "
+                  "another seed shows how much a figure depends on the one draw")
       ->capture_default_str();
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
   cmd->add_option("--json", opts->json, "Write the per-set, per-method figures to this JSON file");

@@ -42,8 +42,8 @@ cv::Mat apply_mixed(const cv::Mat& img) {
   return out;
 }
 
-cv::Mat apply_noise(const cv::Mat& img) {
-  cv::RNG rng(kRadioNoiseSeed);  // cv::RNG is the same generator on every platform
+cv::Mat apply_noise(const cv::Mat& img, std::uint64_t seed) {
+  cv::RNG rng(seed);  // cv::RNG is the same generator on every platform
   cv::Mat noise(img.rows, img.cols * img.channels(), CV_32F);
   rng.fill(noise, cv::RNG::NORMAL, 0.0, kRadioNoiseSigma);
   cv::Mat f;
@@ -71,14 +71,14 @@ void check_radiometric_name(const std::string& name) {
   }
 }
 
-cv::Mat apply_radiometric(const cv::Mat& img, const std::string& name) {
+cv::Mat apply_radiometric(const cv::Mat& img, const std::string& name, std::uint64_t noise_seed) {
   check_radiometric_name(name);
   if (img.depth() != CV_8U || (img.channels() != 1 && img.channels() != 3 && img.channels() != 4))
     throw std::invalid_argument("apply_radiometric: expected an 8-bit 1/3/4-channel image");
   if (name == "gain") return apply_curve(img, [](double i) { return kRadioGain * i; });
   if (name == "gamma") return apply_curve(img, [](double i) { return 255.0 * std::pow(i / 255.0, kRadioGamma); });
   if (name == "mixed") return apply_mixed(img);
-  if (name == "noise") return apply_noise(img);
+  if (name == "noise") return apply_noise(img, noise_seed);
   return img.clone();
 }
 

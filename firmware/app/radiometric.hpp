@@ -5,7 +5,8 @@
 //   gamma  I' = 255 (I/255)^1.3
 //   mixed  I'/255 = 0.03 + 1.15 (I/255)^0.8, then radial vignetting: x (1 - 0.25 (r/rmax)^2), r from
 //          the image centre, rmax the centre-to-corner distance (25 % darker in the corners)
-//   noise  I' = I + N(0, 4^2), independent per pixel and channel, fixed seed (reproducible)
+//   noise  I' = I + N(0, 4^2), independent per pixel and channel, fixed seed (reproducible; `eval
+//          --noise-seed` draws another field to see how much a figure depends on the one draw)
 //   none   unchanged copy
 // Each output is rounded to the nearest integer once, at the end.
 #pragma once
@@ -32,6 +33,7 @@ void check_radiometric_name(const std::string& name);
 
 // Applies distortion `name` to `img` (CV_8UC1/3/4). Unknown name -> fs::UserError listing the
 // valid names; other input types -> std::invalid_argument.
-cv::Mat apply_radiometric(const cv::Mat& img, const std::string& name);
+// noise_seed: the seed of the noise field (cv::RNG), used by "noise" only.
+cv::Mat apply_radiometric(const cv::Mat& img, const std::string& name, std::uint64_t noise_seed = kRadioNoiseSeed);
 
 }  // namespace fs::app

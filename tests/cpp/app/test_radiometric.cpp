@@ -73,6 +73,24 @@ TEST(Radiometric, NoiseIsReproducibleZeroMeanWithSigma4) {
   for (const auto& c : ch) EXPECT_GT(cv::norm(c, cv::Mat(c.size(), CV_8U, cv::Scalar(128)), cv::NORM_INF), 0.0);
 }
 
+// eval --noise-seed: another seed is another field with the same statistics; the default is the fixed seed.
+TEST(Radiometric, NoiseSeedDrawsAnotherFieldWithTheSameSigma) {
+  const cv::Mat img(64, 64, CV_8UC1, cv::Scalar(128));
+  const cv::Mat fixed = apply_radiometric(img, "noise");
+  EXPECT_EQ(cv::norm(fixed, apply_radiometric(img, "noise", fs::app::kRadioNoiseSeed), cv::NORM_INF), 0.0);
+  const cv::Mat other = apply_radiometric(img, "noise", 7);
+  EXPECT_GT(cv::norm(fixed, other, cv::NORM_L1), 64.0 * 64.0);  // most pixels differ
+  cv::Mat diff;
+  other.convertTo(diff, CV_64F);
+  diff -= 128.0;
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(diff, mean, stddev);
+  EXPECT_NEAR(mean[0], 0.0, 0.3);
+  EXPECT_NEAR(stddev[0], 4.0, 0.3);
+  // The other distortions ignore the seed.
+  EXPECT_EQ(cv::norm(apply_radiometric(img, "gamma"), apply_radiometric(img, "gamma", 7), cv::NORM_INF), 0.0);
+}
+
 TEST(Radiometric, NoneIsACopyAndUnknownNamesAreRejected) {
   const cv::Mat img = (cv::Mat_<std::uint8_t>(1, 2) << 7, 9);
   EXPECT_EQ(cv::norm(apply_radiometric(img, "none"), img, cv::NORM_INF), 0.0);
