@@ -82,7 +82,8 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       // on old map cells is not a far-off track's. Without it a static obstacle's track that had
       // coasted out of view for seconds (its gate grown to gate_max_m) took over a mover's
       // measurements 1-2 m away, and the loop's moving test, judging the track's whole-life
-      // travel, never believed it moved (8 of 23 contacts, seeds 93-104; docs/robot.md "Session 35").
+      // travel, never believed it moved (8 of 23 contacts, seeds 93-104). Off by default: on fresh seeds
+      // 105-110 it gave 14 contacts against 11 (docs/robot.md "Session 35").
       if (p_.static_gate_m > 0 && (tr.static_obstacle || m.static_cells) && norm(m.p - tr.last_meas_p) > p_.static_gate_m)
         continue;
       cands.push_back({d, ti, mi});
