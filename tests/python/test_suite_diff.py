@@ -58,6 +58,23 @@ def test_pairs_count_gains_losses_and_list_changes(tmp_path):
     assert j["pairs"][0]["sign_test_p"] == 1.0
 
 
+def test_contacts_have_their_own_sign_test(tmp_path):
+    # base: contacts in 0 (collision), 2 (struck), b0 (collision); new: in 1 (collision) and b0 only.
+    base = _suite(tmp_path, "a.json", ["collision", "reached", "struck", "reached"], ["collision", "blocked_stop"])
+    new = _suite(tmp_path, "b.json", ["reached", "collision", "reached", "reached"], ["collision", "blocked_stop"])
+    d = diff(base, new)
+    assert (d.contacts_fewer, d.contacts_more) == (2, 1)
+    j = to_json([d, d])
+    assert (j["total"]["contacts_base"], j["total"]["contacts_new"]) == (6, 4)
+    assert (j["total"]["contacts_fewer"], j["total"]["contacts_more"]) == (4, 2)
+    assert j["total"]["contacts_sign_test_p"] == pytest.approx(sign_test_p(4, 2))
+    assert j["pairs"][0]["contacts_sign_test_p"] == 1.0
+    # seven scenarios that all lose their contact: p = 2 / 2^7
+    many = _suite(tmp_path, "c.json", ["collision"] * 7, [])
+    none = _suite(tmp_path, "d.json", ["reached"] * 7, [])
+    assert to_json([diff(many, none)])["total"]["contacts_sign_test_p"] == pytest.approx(2 / 128)
+
+
 def test_time_changes_only_on_request(tmp_path):
     base = _suite(tmp_path, "a.json", ["reached", "reached"], [])
     data = json.loads(base.read_text())

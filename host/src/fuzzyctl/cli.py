@@ -766,9 +766,9 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
 @click.option("--json", "json_out", type=_path, default=None, help="Also write the comparison as JSON.")
 def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out: Path | None) -> None:
     """Compare BASE.json NEW.json [BASE2.json NEW2.json ...] (`fuzzystereo sim suite --json`, same
-    seed and count per pair): totals, every scenario whose outcome changed, and the exact sign test of
-    the scenarios reached in only one of the two runs (a small p: more than a harmless change's
-    reshuffling; with 2-4 discordant scenarios p is never small)."""
+    seed and count per pair): totals, every scenario whose outcome changed, and the exact sign tests of
+    the scenarios reached in only one of the two runs and of those with a contact in only one (a small
+    p: more than a harmless change's reshuffling; with 2-4 discordant scenarios p is never small)."""
     import json as _json
     import math as _math
 
@@ -782,7 +782,8 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
              for i in range(0, len(files), 2)]
     j = to_json(pairs)
     t = Table(title="closed-loop suites, base -> new")
-    for col in ("seed", "reached", "collisions", "struck", "safe stops", "mean time to goal s", "gained", "lost", "sign p"):
+    for col in ("seed", "reached", "collisions", "struck", "safe stops", "mean time to goal s", "gained", "lost", "sign p",
+                "contacts -/+", "contacts p"):
         t.add_column(col, justify="right")
     def mt(v: float | None) -> str:
         return "-" if v is None else f"{v:.1f}"
@@ -791,14 +792,19 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
         t.add_row(str(b.seed), f"{b.reached} -> {n.reached} / {b.solvable}", f"{b.collisions} -> {n.collisions}",
                   f"{b.struck} -> {n.struck}", f"{b.safe_stops} -> {n.safe_stops} / {b.blocked}",
                   f"{mt(b.mean_time_reached_s)} -> {mt(n.mean_time_reached_s)}", str(p.gained), str(p.lost),
-                  f"{pj['sign_test_p']:.2f}")
+                  f"{pj['sign_test_p']:.2f}", f"{p.contacts_fewer} / {p.contacts_more}",
+                  f"{pj['contacts_sign_test_p']:.2f}")
     if len(pairs) > 1:
         tot = j["total"]
         t.add_row("all", f"{tot['reached_base']} -> {tot['reached_new']} / {tot['solvable']}",
                   f"{tot['collisions_base']} -> {tot['collisions_new']}", "",
                   f"{tot['safe_stops_base']} -> {tot['safe_stops_new']} / {tot['blocked']}", "",
-                  str(tot["gained"]), str(tot["lost"]), f"{tot['sign_test_p']:.2f}")
+                  str(tot["gained"]), str(tot["lost"]), f"{tot['sign_test_p']:.2f}",
+                  f"{tot['contacts_fewer']} / {tot['contacts_more']}", f"{tot['contacts_sign_test_p']:.2f}")
     console.print(t)
+    tot = j["total"]
+    console.print(f"contacts {tot['contacts_base']} -> {tot['contacts_new']}: {tot['contacts_fewer']} scenarios lost a "
+                  f"contact, {tot['contacts_more']} gained one (sign p = {tot['contacts_sign_test_p']:.2f})")
     for p in pairs:
         if not p.changed:
             console.print(f"seed {p.base.seed}: no scenario changed")

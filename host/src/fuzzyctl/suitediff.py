@@ -6,6 +6,8 @@ a hundred runs a difference of one or two is within what a harmless change does.
 the scenarios of a baseline and a candidate run (same seed, same count), lists every scenario whose
 outcome changed, and gives the exact two-sided sign test of the discordant pairs (reached in one
 run only): the probability that a change with no effect moves at least that many scenarios one way.
+The same test is given for contacts (a collision or a strike in one run only, solvable and blocked
+scenarios alike), since the suite's safety target is about contacts, not arrivals.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ class Outcome:
     success: bool
     time_s: float
     features: str
+    contact: bool = False  # collided or struck
 
 
 @dataclass
@@ -53,6 +56,8 @@ class PairDiff:
     lost: int = 0          # solvable: reached only in the base run
     safe_gained: int = 0   # blocked: safe stop only in the new run
     safe_lost: int = 0
+    contacts_fewer: int = 0  # any scenario: a contact only in the base run
+    contacts_more: int = 0   # any scenario: a contact only in the new run
 
 
 def _load(path: Path) -> dict[str, Any]:
@@ -76,7 +81,9 @@ def outcomes(path: Path) -> tuple[SuiteSummary, dict[str, Outcome]]:
         st = s["status"]
         success = bool(s.get("safe_stop")) if blocked else bool(s.get("reached", st == "reached"))
         t = float(s.get("time_s") or 0.0)
-        out[key] = Outcome(key, blocked, st, success, t, str(s.get("features", "")).strip())
+        collided = bool(s.get("collided", st == "collision"))
+        struck = bool(s.get("struck", st == "struck"))
+        out[key] = Outcome(key, blocked, st, success, t, str(s.get("features", "")).strip(), collided or struck)
         if blocked:
             summ.blocked += 1
             summ.safe_stops += success
@@ -85,8 +92,8 @@ def outcomes(path: Path) -> tuple[SuiteSummary, dict[str, Outcome]]:
             summ.reached += success
             if success:
                 times.append(t)
-        summ.collisions += bool(s.get("collided", st == "collision"))
-        summ.struck += bool(s.get("struck", st == "struck"))
+        summ.collisions += collided
+        summ.struck += struck
     summ.mean_time_reached_s = sum(times) / len(times) if times else None
     return summ, out
 
@@ -123,6 +130,8 @@ def diff(base_path: Path, new_path: Path, time_change_s: float = math.inf) -> Pa
             else:
                 d.gained += b.success
                 d.lost += a.success
+        d.contacts_fewer += a.contact and not b.contact
+        d.contacts_more += b.contact and not a.contact
         timed = a.success and b.success and abs(a.time_s - b.time_s) > time_change_s
         if a.status != b.status or timed:
             if a.blocked:
@@ -145,10 +154,14 @@ def to_json(pairs: list[PairDiff]) -> dict[str, Any]:
         return dict(s.__dict__)
     g = sum(p.gained for p in pairs)
     lo = sum(p.lost for p in pairs)
+    cf = sum(p.contacts_fewer for p in pairs)
+    cm = sum(p.contacts_more for p in pairs)
     return {
         "pairs": [{"base": summ(p.base), "new": summ(p.new), "changed": p.changed, "gained": p.gained,
                    "lost": p.lost, "safe_gained": p.safe_gained, "safe_lost": p.safe_lost,
-                   "sign_test_p": sign_test_p(p.gained, p.lost)} for p in pairs],
+                   "sign_test_p": sign_test_p(p.gained, p.lost),
+                   "contacts_fewer": p.contacts_fewer, "contacts_more": p.contacts_more,
+                   "contacts_sign_test_p": sign_test_p(p.contacts_fewer, p.contacts_more)} for p in pairs],
         "total": {
             "solvable": sum(p.base.solvable for p in pairs),
             "reached_base": sum(p.base.reached for p in pairs), "reached_new": sum(p.new.reached for p in pairs),
@@ -158,5 +171,8 @@ def to_json(pairs: list[PairDiff]) -> dict[str, Any]:
             "safe_stops_new": sum(p.new.safe_stops for p in pairs),
             "blocked": sum(p.base.blocked for p in pairs),
             "gained": g, "lost": lo, "sign_test_p": sign_test_p(g, lo),
+            "contacts_base": sum(p.base.collisions + p.base.struck for p in pairs),
+            "contacts_new": sum(p.new.collisions + p.new.struck for p in pairs),
+            "contacts_fewer": cf, "contacts_more": cm, "contacts_sign_test_p": sign_test_p(cf, cm),
         },
     }
