@@ -260,6 +260,11 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--noise-seed", opts->noise_seed,
                   "Seed of the noise field of --radiometric noise (default: the fixed seed of docs/results.md); "
                   "another seed shows how much a figure depends on the one draw")
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            return v.find('-') == std::string::npos ? std::string() : "must be a whole number in [0, 2^64 - 1], got " + v;
+          },
+          "SEED"))
       ->capture_default_str();
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
   cmd->add_option("--json", opts->json, "Write the per-set, per-method figures to this JSON file");

@@ -116,6 +116,13 @@ def test_eval_unknown_layout_and_radiometric(firmware_bin, tmp_path):
     assert_user_error(p, "sepia")
 
 
+def test_eval_rejects_a_negative_noise_seed(firmware_bin, tmp_path):
+    (tmp_path / "empty").mkdir()
+    p = run(firmware_bin, "eval", "--dataset", str(tmp_path / "empty"), "--radiometric", "noise", "--noise-seed", "-3")
+    assert p.returncode != 0
+    assert "--noise-seed" in p.stderr and "-3" in p.stderr, p.stderr
+
+
 def test_fis_eval_rejects_out_of_range(firmware_bin):
     p = run(firmware_bin, "fis", "eval", stdin="0.5 0.5\n1.5 0.2\n")
     assert_user_error(p, "line 2")
