@@ -97,11 +97,11 @@ DispMetrics evaluate_disparity(const cv::Mat& est, const cv::Mat& gt, const cv::
 
 DispMetrics evaluate_filled(const cv::Mat& est, const cv::Mat& filled, const cv::Mat& gt, const cv::Mat& area) {
   if (est.type() != CV_32FC1 || filled.type() != CV_32FC1 || gt.type() != CV_32FC1)
-    throw std::invalid_argument("evaluate_disparity: expected CV_32FC1 estimate and ground truth");
+    throw std::invalid_argument("evaluate_filled: expected CV_32FC1 estimate, filled map and ground truth");
   if (est.size() != gt.size() || filled.size() != gt.size())
-    throw std::invalid_argument("evaluate_disparity: estimate and ground truth sizes differ");
+    throw std::invalid_argument("evaluate_filled: estimate, filled map and ground truth sizes differ");
   if (!area.empty() && (area.type() != CV_8UC1 || area.size() != gt.size()))
-    throw std::invalid_argument("evaluate_disparity: the evaluation area must be CV_8UC1 of the ground truth's size");
+    throw std::invalid_argument("evaluate_filled: the evaluation area must be CV_8UC1 of the ground truth's size");
 
   // KITTI thresholds (evaluate_stereo.cpp: ABS_THRESH = 3, REL_THRESH = 0.05).
   constexpr double kAbsThresh = 3.0, kRelThresh = 0.05, kBad2 = 2.0;

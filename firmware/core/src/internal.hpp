@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "fuzzystereo/union_find.hpp"
+
 #if defined(FS_HAVE_OPENMP)
 #include <omp.h>
 #endif
@@ -87,29 +89,8 @@ void run_pair(int threads, F&& first, G&& second) {
 #endif
 }
 
-// Union-find over the dense indices 0..n-1 (runs of a labelling), path halving. unite() keeps the
-// smaller index as the root, so when indices follow scan order a component's root is its first
-// element. Used by the run-based connected components of SLIC (segmentation/) and densify/.
-class MinRootUnionFind {
- public:
-  explicit MinRootUnionFind(std::size_t n) : parent_(n) {
-    for (std::size_t i = 0; i < n; ++i) parent_[i] = static_cast<std::int32_t>(i);
-  }
-  std::int32_t find(std::int32_t a) {
-    while (parent_[std::size_t(a)] != a) {
-      parent_[std::size_t(a)] = parent_[std::size_t(parent_[std::size_t(a)])];
-      a = parent_[std::size_t(a)];
-    }
-    return a;
-  }
-  void unite(std::int32_t a, std::int32_t b) {
-    const std::int32_t ra = find(a), rb = find(b);
-    if (ra != rb) parent_[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
-  }
-
- private:
-  std::vector<std::int32_t> parent_;
-};
+// Union-find with the smaller index as root (fuzzystereo/union_find.hpp).
+using fs::MinRootUnionFind;
 
 // Calls f(x0, x1) for every run [x0, x1) of equal values in row[0..w), left to right (w >= 1).
 // The run ends are found without a per-pixel branch: a vectorisable pass writes a 0/1 flag per

@@ -1,36 +1,20 @@
 // Hidden sides of mapped obstacles: circles fitted to groups of occupied map cells (bodies.hpp).
 // Why hand-written: the fits are 3x3 least-squares problems solved with Eigen; the grouping is a
-// bucket hash with a union-find (a few hundred cells per frame).
+// bucket hash with the core's union-find (a few hundred cells per frame).
 #include "fuzzystereo/robot/bodies.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <numeric>
 #include <unordered_map>
 
 #include <Eigen/Dense>
 
+#include "fuzzystereo/union_find.hpp"
+
 namespace fs::robot {
 
 namespace {
-
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int a) {
-    while (parent[std::size_t(a)] != a) {
-      parent[std::size_t(a)] = parent[std::size_t(parent[std::size_t(a)])];
-      a = parent[std::size_t(a)];
-    }
-    return a;
-  }
-  void unite(int a, int b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);  // root = smallest index
-  }
-};
 
 // Arc covered by pts round c [deg]: 360 minus the largest gap between consecutive bearings.
 double arc_covered_deg(const std::vector<Vec2>& pts, Vec2 c) {
@@ -118,7 +102,7 @@ std::vector<FittedBody> fit_bodies(const std::vector<CircleObstacle>& cells, Vec
     by[i] = static_cast<std::int64_t>(std::floor(cells[i].c.y * inv));
     buckets[key(bx[i], by[i])].push_back(int(i));
   }
-  UnionFind uf(n);
+  MinRootUnionFind uf(n);
   const double l2 = p.link_m * p.link_m;
   for (std::size_t i = 0; i < n; ++i)
     for (std::int64_t dy = -1; dy <= 1; ++dy)
