@@ -8,6 +8,8 @@
 #   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
 #   make demo           deps, build, then the closed-loop simulator run -> out/demo/report.html
 #   make demo-match     the matcher alone on the OpenCV "aloe" pair -> out/demo-match
+#   make targets        deps, build, then every issue target measured -> out/targets/index.html
+#                       (~10 min on two cores; TARGETS_ARGS="--quick" for a 40 s check of the chain)
 #   make install        install fuzzystereo and the default configs under PREFIX (/usr/local)
 #   make clean          remove build/ and out/   (make distclean also removes .venv)
 
@@ -161,6 +163,15 @@ demo-match: deps build
 	set -x; \
 	build/default/fuzzystereo match --left "$$left" --right "$$right" --gt "$$gt" \
 	  --downscale 3 --max-disparity 80 --out $(DEMO_MATCH_OUT) --dump
+
+# ---- every issue target, measured (fuzzyctl targets) ------------------------------------------------
+# eval (clean + radiometric), bench, detect-eval on fresh generated frames, the closed-loop suite, the
+# watchdog stall and track-eval, with the bad-input checks: one table and out/targets/index.html.
+TARGETS_ARGS ?=
+.PHONY: targets
+targets: deps build
+	$(VENV)/bin/fuzzyctl targets --bin build/default/fuzzystereo --datasets "$(FUZZYSTEREO_DATASETS)" \
+	  --out out/targets $(TARGETS_ARGS)
 
 # ---- install (on the robot) -----------------------------------------------------------------------
 # The program and the default config files: PREFIX/bin/fuzzystereo, PREFIX/share/fuzzystereo/

@@ -1,6 +1,8 @@
 // `fuzzystereo sim`: the deterministic synthetic stereo world (docs/simulator.md).
 //   sim render SCENE --out DIR     one stereo pair with its exact ground truth
 //   sim generate --count N --seed S --out DIR    a KITTI-2015-like synthetic data set
+//   sim track-eval [--config C] [--trials N ...]  the tracker on constant-velocity trajectories with exact
+//                                                 ground truth (issue 5's tracking targets)
 // The world itself (fs_sim) has no OpenCV; this file converts its images and writes the files.
 #include <algorithm>
 #include <chrono>
@@ -19,6 +21,8 @@
 
 #include "commands.hpp"
 #include "config.hpp"
+#include "fuzzystereo/robot/params.hpp"
+#include "fuzzystereo/robot/track_eval.hpp"
 #include "fuzzystereo/sim/generator.hpp"
 #include "fuzzystereo/sim/world.hpp"
 #include "io.hpp"
@@ -277,6 +281,60 @@ void run_generate(const GenerateOptions& o) {
                max_disparity_16, total_ms / o.count);
 }
 
+struct TrackEvalCliOptions {
+  std::string config, json_out;
+  robot::TrackEvalOptions eval;
+};
+
+// The issue-5 tracking targets: filtered position RMSE below the raw measurements', and the velocity
+// error within 0.1 m/s after 10 frames (the 95th percentile is held to it; RMS and max are printed too).
+void run_track_eval(const TrackEvalCliOptions& o) {
+  const Config cfg = load_config(o.config);
+  const robot::TrackerParams tp = robot::tracker_params_from(cfg.values);
+  robot::TrackEvalResult r;
+  try {
+    r = robot::evaluate_constant_velocity(tp, o.eval);
+  } catch (const std::invalid_argument& e) {
+    throw UserError(e.what());
+  }
+  const bool pos_ok = r.filt_pos_rmse_m < r.raw_pos_rmse_m, vel_ok = r.vel_p95_after_mps <= 0.1;
+  std::printf("track-eval: %d constant-velocity trajectories x %d frames at %.0f Hz, noise %.3f m per axis, speeds up to "
+              "%.2f m/s, [tracker] from %s\n",
+              o.eval.trials, o.eval.frames, 1.0 / o.eval.dt_s, o.eval.sigma_m, r.max_speed_mps,
+              o.config.empty() ? "the defaults" : o.config.c_str());
+  std::printf("  position RMSE   filter %.4f m   raw measurements %.4f m   (%.0f %% of raw)   %s\n", r.filt_pos_rmse_m,
+              r.raw_pos_rmse_m, 100.0 * r.filt_pos_rmse_m / r.raw_pos_rmse_m, pos_ok ? "target met" : "TARGET MISSED");
+  std::printf("  velocity error from frame %d on   RMS %.4f m/s   p95 %.4f m/s   max %.4f m/s   %s (p95 <= 0.1 m/s)\n",
+              o.eval.settle_frames, r.vel_rmse_after_mps, r.vel_p95_after_mps, r.vel_max_after_mps,
+              vel_ok ? "target met" : "TARGET MISSED");
+  if (r.frames_not_one_track > 0)
+    std::printf("  warning: %ld of %ld frames did not hold exactly one track (left out of the figures)\n",
+                r.frames_not_one_track, r.frames_total);
+  if (!o.json_out.empty()) {
+    json j{{"format", "fuzzystereo-track-eval"},
+           {"trials", o.eval.trials},
+           {"frames", o.eval.frames},
+           {"dt_s", o.eval.dt_s},
+           {"sigma_m", o.eval.sigma_m},
+           {"max_axis_speed_mps", o.eval.max_axis_speed_mps},
+           {"settle_frames", o.eval.settle_frames},
+           {"seed", o.eval.seed},
+           {"max_speed_mps", r.max_speed_mps},
+           {"filt_pos_rmse_m", r.filt_pos_rmse_m},
+           {"raw_pos_rmse_m", r.raw_pos_rmse_m},
+           {"vel_rmse_after_mps", r.vel_rmse_after_mps},
+           {"vel_p95_after_mps", r.vel_p95_after_mps},
+           {"vel_max_after_mps", r.vel_max_after_mps},
+           {"frames_not_one_track", r.frames_not_one_track},
+           {"frames_total", r.frames_total},
+           {"position_target_met", pos_ok},
+           {"velocity_target_met", vel_ok},
+           {"config_toml", config_to_toml(cfg.values)}};
+    write_text(o.json_out, j.dump(2) + "\n");
+    std::printf("wrote %s\n", o.json_out.c_str());
+  }
+}
+
 }  // namespace
 
 void add_sim_command(CLI::App& app) {
@@ -303,6 +361,20 @@ void add_sim_command(CLI::App& app) {
   gen->add_option("--height", go->height, "Image height [px]")->capture_default_str();
   gen->add_option("--threads", go->threads, "Render threads (0 = all cores)")->capture_default_str();
   gen->callback([go] { run_generate(*go); });
+
+  auto to = std::make_shared<TrackEvalCliOptions>();
+  CLI::App* te = sim->add_subcommand("track-eval", "Kalman tracking on generated constant-velocity trajectories with exact ground truth");
+  te->add_option("--config", to->config, "TOML config (its [tracker] section)");
+  te->add_option("--trials", to->eval.trials, "Trajectories")->capture_default_str();
+  te->add_option("--frames", to->eval.frames, "Frames per trajectory")->capture_default_str();
+  te->add_option("--dt", to->eval.dt_s, "Frame period [s]")->capture_default_str();
+  te->add_option("--sigma", to->eval.sigma_m, "Measurement noise per axis [m]")->capture_default_str();
+  te->add_option("--speed", to->eval.max_axis_speed_mps, "Velocity components uniform in [-speed, speed] [m/s]")
+      ->capture_default_str();
+  te->add_option("--settle", to->eval.settle_frames, "Velocity errors count from this frame on")->capture_default_str();
+  te->add_option("--seed", to->eval.seed, "Seed (same seed, same trajectories)")->capture_default_str();
+  te->add_option("--json", to->json_out, "Write the figures as JSON");
+  te->callback([to] { run_track_eval(*to); });
 }
 
 }  // namespace fs::app

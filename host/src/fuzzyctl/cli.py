@@ -823,6 +823,62 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
         console.print(f"wrote {json_out}")
 
 
+@app.command("targets", short_help="Every issue target measured in one run: table, targets.json, index.html.")
+@click.option("--bin", "binary", type=_path, default=None,
+              help="fuzzystereo binary (default $FUZZYSTEREO_BIN or build/default/fuzzystereo).")
+@click.option("--datasets", type=click.Path(path_type=Path, file_okay=False), default=None,
+              help="Stereo datasets (default $FUZZYSTEREO_DATASETS or ../shared/datasets); without them the "
+                   "accuracy and speed rows are reported as not measured.")
+@click.option("--out", type=_path, default=Path("out/targets"), show_default=True, help="Output directory.")
+@click.option("--issues", default="2,4,5", show_default=True, help="Which issues' targets, comma-separated.")
+@click.option("--quick", is_flag=True,
+              help="Small samples (12 frames, 4 scenarios, 1 bench repeat): checks the chain, not the targets.")
+@click.option("--frames", type=click.IntRange(1, 100000), default=300, show_default=True,
+              help="Generated frames for detect-eval.")
+@click.option("--detect-seed", type=click.IntRange(0, None), default=64, show_default=True)
+@click.option("--scenarios", type=click.IntRange(1, 100000), default=100, show_default=True,
+              help="Suite scenarios with a free path (plus a tenth without).")
+@click.option("--suite-seed", type=click.IntRange(0, None), default=111, show_default=True)
+@click.option("--jobs", type=click.IntRange(1, 64), default=2, show_default=True, help="Suite scenarios in parallel.")
+@click.option("--repeats", type=click.IntRange(1, 100), default=5, show_default=True, help="bench repeats per frame.")
+@click.option("--config", "config_file", type=_existing_file, default=None, help="Config TOML for every command.")
+@click.option("--strict", is_flag=True, help="Exit 1 when a target is missed or not measured.")
+def targets_cmd(binary: Path | None, datasets: Path | None, out: Path, issues: str, quick: bool, frames: int,
+                detect_seed: int, scenarios: int, suite_seed: int, jobs: int, repeats: int, config_file: Path | None,
+                strict: bool) -> None:
+    """Run the firmware's benchmark commands behind every target of issues 2, 4 and 5 (eval clean and
+    radiometric, bench, detect-eval on freshly generated frames, the closed-loop suite, the watchdog
+    stall on both clocks, track-eval, the bad-input checks) and print one table of target / measured /
+    met. The full run takes about 10 minutes on two cores; raw outputs go to OUT/raw/."""
+    from .firmware import find_binary
+    from .targets import Options, default_datasets_dir, run_targets, summary
+
+    try:
+        wanted = tuple(sorted({int(x) for x in issues.split(",") if x.strip()}))
+    except ValueError:
+        raise FatalError(f"--issues {issues!r}: expected a comma-separated list of 2, 4, 5") from None
+    if not wanted or any(i not in (2, 4, 5) for i in wanted):
+        raise FatalError(f"--issues {issues!r}: each must be 2, 4 or 5")
+    opt = Options(binary=find_binary(binary), datasets=datasets or default_datasets_dir(), out=out, quick=quick,
+                  issues=wanted, detect_frames=12 if quick else frames, detect_seed=detect_seed,
+                  suite_count=4 if quick else scenarios, suite_seed=suite_seed, jobs=jobs,
+                  bench_repeats=1 if quick else repeats, config=config_file)
+    t0 = __import__("time").monotonic()
+    rows, page = run_targets(opt, log=lambda s: err_console.print(s))
+    table = Table(title=f"issue targets{' (quick: small samples)' if quick else ''}")
+    for col in ("issue", "target", "required", "measured", ""):
+        table.add_column(col)
+    mark = {True: "[green]met[/]", False: "[red]missed[/]", None: "[yellow]not measured[/]"}
+    for t in rows:
+        table.add_row(str(t.issue), escape(t.name), escape(t.target), escape(t.measured), mark[t.met])
+    console.print(table)
+    s = summary(rows)
+    console.print(f"{s['met']} met, {s['missed']} missed, {s['not_measured']} not measured "
+                  f"({__import__('time').monotonic() - t0:.0f} s); report {page}")
+    if strict and (s["missed"] or s["not_measured"]):
+        raise click.exceptions.Exit(1)
+
+
 # ---- main -----------------------------------------------------------------------------------
 
 

@@ -6,10 +6,12 @@
 #include <iostream>
 #include <random>
 #include <set>
+#include <stdexcept>
 
 #include "config.hpp"
 #include "fuzzystereo/robot/kalman.hpp"
 #include "fuzzystereo/robot/params.hpp"
+#include "fuzzystereo/robot/track_eval.hpp"
 #include "fuzzystereo/robot/tracker.hpp"
 
 namespace fs::robot {
@@ -59,37 +61,20 @@ struct TrackStats {
   double filt_pos_rmse = 0, raw_pos_rmse = 0, vel_rmse_after10 = 0, vel_p95_after10 = 0, vel_max_after10 = 0;
 };
 
-// Constant-velocity ground truth with Gaussian position noise, one obstacle per trajectory.
+// Constant-velocity ground truth with Gaussian position noise, one obstacle per trajectory: the
+// library's evaluation (fuzzystereo/robot/track_eval.hpp, also `fuzzystereo sim track-eval`), which
+// must hold exactly one track in every frame.
 TrackStats run_cv_trials(const TrackerParams& tp, double sigma, double dt, int frames, int trials, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  double se_f = 0, se_r = 0, se_v = 0;
-  long np = 0, nv = 0;
-  std::vector<double> verr;
-  for (int k = 0; k < trials; ++k) {
-    MultiTracker mt(tp);
-    const Vec2 p0{3.0 + u(rng), 2.0 * u(rng)}, v{0.6 * u(rng), 0.6 * u(rng)};
-    for (int f = 0; f < frames; ++f) {
-      const double t = f * dt;
-      const Vec2 truth = p0 + t * v;
-      const Vec2 z{truth.x + sigma * n01(rng), truth.y + sigma * n01(rng)};
-      mt.step(s_to_ns(t), {{z, 0.2, 1, sigma}}, [](Vec2) { return true; });
-      EXPECT_EQ(mt.tracks().size(), 1u);
-      const Track& tr = mt.tracks()[0];
-      se_f += std::pow(norm(tr.pos() - truth), 2);
-      se_r += std::pow(norm(z - truth), 2);
-      ++np;
-      if (f >= 10) {
-        const double e = norm(tr.vel() - v);
-        se_v += e * e;
-        ++nv;
-        verr.push_back(e);
-      }
-    }
-  }
-  std::sort(verr.begin(), verr.end());
-  return {std::sqrt(se_f / static_cast<double>(np)), std::sqrt(se_r / static_cast<double>(np)), std::sqrt(se_v / static_cast<double>(nv)), verr[verr.size() * 95 / 100], verr.back()};
+  TrackEvalOptions o;
+  o.sigma_m = sigma;
+  o.dt_s = dt;
+  o.frames = frames;
+  o.trials = trials;
+  o.seed = seed;
+  const TrackEvalResult r = evaluate_constant_velocity(tp, o);
+  EXPECT_EQ(r.frames_not_one_track, 0);
+  EXPECT_EQ(r.frames_total, long(frames) * trials);
+  return {r.filt_pos_rmse_m, r.raw_pos_rmse_m, r.vel_rmse_after_mps, r.vel_p95_after_mps, r.vel_max_after_mps};
 }
 
 // A target that walks straight and then turns: speed 0.3-0.8 m/s, heading turned by 60-120 deg (either
@@ -276,6 +261,22 @@ TEST(Tracker, PositionOnlyVariantAlsoConverges) {
             << s.vel_rmse_after10 << " m/s\n";
   EXPECT_LT(s.filt_pos_rmse, s.raw_pos_rmse);
   EXPECT_LT(s.vel_rmse_after10, 0.1);
+}
+
+TEST(Tracker, TrackEvalRejectsBadOptionsAndIsDeterministic) {
+  TrackEvalOptions o;
+  o.trials = 3;
+  o.frames = 20;
+  const TrackEvalResult a = evaluate_constant_velocity(TrackerParams{}, o), b = evaluate_constant_velocity(TrackerParams{}, o);
+  EXPECT_EQ(a.filt_pos_rmse_m, b.filt_pos_rmse_m);
+  EXPECT_EQ(a.vel_p95_after_mps, b.vel_p95_after_mps);
+  o.seed = 7;
+  EXPECT_NE(evaluate_constant_velocity(TrackerParams{}, o).raw_pos_rmse_m, a.raw_pos_rmse_m);
+  for (auto bad : {TrackEvalOptions{.trials = 0}, TrackEvalOptions{.frames = 1}, TrackEvalOptions{.dt_s = 0.0},
+                   TrackEvalOptions{.sigma_m = -0.1}, TrackEvalOptions{.settle_frames = 60}})
+    EXPECT_THROW(evaluate_constant_velocity(TrackerParams{}, bad), std::invalid_argument);
+  EXPECT_EQ(a.frames_not_one_track, 0);
+  EXPECT_EQ(a.frames_total, 60);
 }
 
 TEST(Tracker, ConfirmationAfterMHits) {

@@ -1,0 +1,150 @@
+"""`fuzzyctl targets`: the verdicts on hand-made results, and the whole chain on small samples."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from fuzzyctl.cli import main
+from fuzzyctl.targets import (
+    bench_targets,
+    check_target,
+    detect_targets,
+    eval_targets,
+    suite_targets,
+    tracking_targets,
+    watchdog_targets,
+)
+
+
+def _m(avg, bad2, **extra):
+    return {"avg_err": avg, "bad2": bad2, **extra}
+
+
+def _clean():
+    return {"sets": {
+        "kitti2012": {"fuzzystereo": _m(1.40, 10.0, noc=_m(1.20, 9.0)), "sgbm": _m(1.8, 12.0)},
+        "kitti2015": {"fuzzystereo": _m(1.30, 15.0), "sgbm": _m(1.2, 9.0)},
+        "middlebury2006-third": {"fuzzystereo": _m(1.4, 11.9), "sgbm": _m(1.5, 15.3)},
+    }}
+
+
+def _by_name(rows):
+    return {t.name: t for t in rows}
+
+
+def test_eval_verdicts_follow_each_number():
+    rad = {"gain": {"sets": {
+        "kitti2012": {"fuzzystereo": _m(0, 12.5), "sgbm": _m(0, 13.0)},     # 1.25x exactly, below SGBM: both met
+        "kitti2015": {"fuzzystereo": _m(0, 15.5), "sgbm": _m(0, 15.0)},     # within 1.25x, above SGBM
+        "middlebury2006-third": {"fuzzystereo": _m(0, 15.0), "sgbm": _m(0, 20.0)},  # 1.26x clean
+    }}}
+    rows = _by_name(eval_targets(_clean(), rad))
+    assert rows["kitti2012: average error (all pixels)"].met is False          # 1.40 > 1.34
+    assert "non-occluded 1.200 px" in rows["kitti2012: average error (all pixels)"].measured
+    assert rows["kitti2015: average error (all pixels)"].met is True           # 1.30 <= 1.34
+    assert rows["kitti2012: bad-2 (all pixels)"].met is True
+    assert rows["kitti2015: bad-2 (all pixels)"].met is False                  # 15.0 > 14.3
+    assert rows["Middlebury 2006 third: bad-2 no worse than StereoSGBM"].met is True
+    gain = next(t for t in rows.values() if t.name.startswith("radiometric 'gain'"))
+    assert gain.met is False
+    assert gain.measured.startswith("2/3 within 1.25x, 2/3 below SGBM")
+    cells = {c["set"]: c for c in gain.details["cells"]}
+    assert cells["kitti2012"]["ratio_ok"] and cells["kitti2012"]["sgbm_ok"]
+    assert cells["kitti2015"]["ratio_ok"] and cells["kitti2015"]["sgbm_ok"] is False
+    assert not cells["middlebury2006-third"]["ratio_ok"]
+    missing = [t for t in rows.values() if t.name == "radiometric 'noise'"]
+    assert missing and missing[0].met is None and missing[0].measured == "not measured"
+
+
+def test_eval_all_radiometric_cells_met():
+    clean = _clean()
+    rad = {"gamma": {"sets": {k: {"fuzzystereo": _m(0, v["fuzzystereo"]["bad2"] * 1.1), "sgbm": _m(0, 99.0)}
+                              for k, v in clean["sets"].items()}}}
+    gamma = next(t for t in eval_targets(clean, rad) if t.name.startswith("radiometric 'gamma'"))
+    assert gamma.met is True and "missed" not in gamma.measured
+
+
+def _bench(ratio1, ratio2):
+    return {"width": 10, "height": 10, "max_disparity": 16, "repeats": 3, "runs": [
+        {"threads": t, "ratio_fuzzystereo_sgbm": r, "fuzzystereo_ms": r * 10, "sgbm_ms": 10.0, "bm_ms": 3.0,
+         "stages_ms": {"cost": 1.0}} for t, r in ((1, ratio1), (2, ratio2))]}
+
+
+def test_bench_verdict_is_the_ratio_at_each_thread_count():
+    rows = bench_targets({"kitti2015/000046": _bench(1.0, 1.01)})
+    assert [t.met for t in rows] == [True, False]
+    assert rows[1].measured.startswith("1.01x (10.1 vs 10.0 ms")
+
+
+def test_detect_verdicts():
+    de = {"overall": {"frames": 300, "gt_obstacles": 1000, "detection_rate": 0.97, "detection_rate_box_only": 0.98,
+                      "false_positives_per_frame": 0.11, "road_iou": 0.9, "distance_rel_error_median": 0.051,
+                      "distance_rel_error_p90": 0.1,
+                      "ms_per_frame": {"detect_over_matcher": 1.0, "detect_total": 20.0, "matcher_total": 20.0}},
+          "per_type": {}}
+    rows = detect_targets(de)
+    assert [t.met for t in rows] == [True, False, True, False, False]
+
+
+def test_suite_verdicts_count_struck_as_contacts():
+    s = {"seed": 1, "solvable": 100, "reached": 98, "success_pct": 98.0, "collisions": 0, "struck": 1,
+         "blocked": 10, "blocked_safe_stop": 10}
+    rows = suite_targets(s)
+    assert [t.met for t in rows] == [True, False, True]
+    assert "1 struck" in rows[1].measured
+
+
+def test_watchdog_verdicts_read_each_clocks_field_and_need_a_trip():
+    sim = {"watchdog_trips": 1, "watchdog_stop_after_deadline_ms": 100.0}
+    wall = {"watchdog_trips": 1, "watchdog_stop_wall_after_stall_ms": 100.5}
+    assert [t.met for t in watchdog_targets(sim, wall)] == [True, False]
+    no_trip = watchdog_targets({"watchdog_trips": 0}, None)
+    assert no_trip[0].met is False and "did not trip" in no_trip[0].measured
+    assert no_trip[1].met is None
+
+
+def test_tracking_and_check_verdicts():
+    te = {"trials": 10, "frames": 60, "settle_frames": 10, "filt_pos_rmse_m": 0.05, "raw_pos_rmse_m": 0.05,
+          "vel_p95_after_mps": 0.1, "vel_rmse_after_mps": 0.05, "vel_max_after_mps": 0.2}
+    assert [t.met for t in tracking_targets(te)] == [False, True]
+    c = check_target(2, "bad input", [("a", True, "x"), ("b", False, "crash")])
+    assert c.met is False and "failed: b: crash" in c.measured
+
+
+@pytest.mark.firmware
+def test_targets_without_datasets_reports_them_not_measured(firmware_bin, tmp_path, capsys):
+    out = tmp_path / "t"
+    rc = main(["targets", "--bin", str(firmware_bin), "--issues", "2", "--quick", "--datasets",
+               str(tmp_path / "none"), "--out", str(out), "--strict"])
+    assert rc == 1  # --strict: a row is not measured
+    doc = json.loads((out / "targets.json").read_text())
+    rows = {t["name"]: t for t in doc["targets"]}
+    assert rows["accuracy, radiometric and speed targets"]["met"] is None
+    assert "datasets not found" in rows["accuracy, radiometric and speed targets"]["measured"]
+    bad = rows["bad input (missing file, size mismatch, unreadable image, out-of-range config)"]
+    assert bad["met"] is True, bad["measured"]
+    assert (out / "index.html").read_text().count("not measured") >= 1
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+@pytest.mark.slow
+def test_targets_quick_run_measures_every_row(firmware_bin, datasets_root, tmp_path):
+    out = tmp_path / "t"
+    rc = main(["targets", "--bin", str(firmware_bin), "--quick", "--datasets", str(datasets_root), "--out", str(out)])
+    assert rc == 0
+    doc = json.loads((out / "targets.json").read_text())
+    assert doc["summary"]["not_measured"] == 0
+    names = [t["name"] for t in doc["targets"]]
+    assert sum(n.startswith("speed ") for n in names) == 4
+    assert sum(n.startswith("radiometric ") for n in names) == 4
+    assert any(n.startswith("closed-loop suite: goal reached") for n in names)
+    assert any(n.startswith("tracking: position RMSE") for n in names)
+    # every row's verdict is a boolean computed from the raw JSON kept beside it
+    assert all(isinstance(t["met"], bool) for t in doc["targets"])
+    raw = {p.name for p in (out / "raw").iterdir()}
+    assert {"eval_clean.json", "detect_eval.json", "suite.json", "watchdog_wall.json", "track_eval.json"} <= raw
+    html = (out / "index.html").read_text()
+    assert "data:image/png;base64," in html  # the stage chart
