@@ -138,7 +138,9 @@ def test_targets_quick_run_measures_every_row(firmware_bin, datasets_root, tmp_p
     doc = json.loads((out / "targets.json").read_text())
     assert doc["summary"]["not_measured"] == 0
     names = [t["name"] for t in doc["targets"]]
-    assert sum(n.startswith("speed ") for n in names) == 4
+    assert sum(n.startswith("speed ") and "from eval" not in n for n in names) == 4  # bench: 2 frames x 2 thread counts
+    sets = json.loads((out / "raw" / "eval_clean.json").read_text())["sets"]
+    assert sum("from eval" in n for n in names) == len(sets) > 0  # one per evaluated set
     assert sum(n.startswith("radiometric ") for n in names) == 4
     assert any(n.startswith("closed-loop suite: goal reached") for n in names)
     assert any(n.startswith("tracking: position RMSE") for n in names)
@@ -148,3 +150,28 @@ def test_targets_quick_run_measures_every_row(firmware_bin, datasets_root, tmp_p
     assert {"eval_clean.json", "detect_eval.json", "suite.json", "watchdog_wall.json", "track_eval.json"} <= raw
     html = (out / "index.html").read_text()
     assert "data:image/png;base64," in html  # the stage chart
+
+
+def test_eval_speed_rows_and_suite_errors():
+    clean = {"sets": {"kitti2015": {"fuzzystereo": {"ms_per_frame": 50.0, "frames": 1},
+                                    "sgbm": {"ms_per_frame": 50.0, "frames": 1}},
+                      "m": {"fuzzystereo": {"ms_per_frame": 20.0, "frames": 4}, "sgbm": {"ms_per_frame": 10.0, "frames": 4}}}}
+    from fuzzyctl.targets import eval_speed_targets
+
+    assert [t.met for t in eval_speed_targets(clean)] == [True, False]
+    s = {"seed": 1, "solvable": 10, "reached": 10, "success_pct": 100.0, "collisions": 0, "struck": 0,
+         "blocked": 1, "blocked_safe_stop": 1, "errors": 2}
+    rows = suite_targets(s)
+    assert rows[-1].name.endswith("ended in an error") and rows[-1].met is False
+
+
+@pytest.mark.firmware
+def test_targets_against_an_earlier_run_shows_before(firmware_bin, tmp_path, capsys):
+    out1, out2 = tmp_path / "a", tmp_path / "b"
+    args = ["targets", "--bin", str(firmware_bin), "--issues", "2", "--quick", "--datasets", str(tmp_path / "none")]
+    assert main([*args, "--out", str(out1)]) == 0
+    assert main([*args, "--out", str(out2), "--against", str(out1 / "targets.json")]) == 0
+    assert "<th>before</th>" in (out2 / "index.html").read_text()
+    assert "before" in capsys.readouterr().out
+    (tmp_path / "x.json").write_text("{}")
+    assert main([*args, "--out", str(out2), "--against", str(tmp_path / "x.json")]) == 2

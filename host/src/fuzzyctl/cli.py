@@ -842,16 +842,18 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
 @click.option("--jobs", type=click.IntRange(1, 64), default=2, show_default=True, help="Suite scenarios in parallel.")
 @click.option("--repeats", type=click.IntRange(1, 100), default=5, show_default=True, help="bench repeats per frame.")
 @click.option("--config", "config_file", type=_existing_file, default=None, help="Config TOML for every command.")
+@click.option("--against", type=_existing_file, default=None,
+              help="An earlier targets.json: its figures in a 'before' column.")
 @click.option("--strict", is_flag=True, help="Exit 1 when a target is missed or not measured.")
 def targets_cmd(binary: Path | None, datasets: Path | None, out: Path, issues: str, quick: bool, frames: int,
                 detect_seed: int, scenarios: int, suite_seed: int, jobs: int, repeats: int, config_file: Path | None,
-                strict: bool) -> None:
+                against: Path | None, strict: bool) -> None:
     """Run the firmware's benchmark commands behind every target of issues 2, 4 and 5 (eval clean and
     radiometric, bench, detect-eval on freshly generated frames, the closed-loop suite, the watchdog
     stall on both clocks, track-eval, the bad-input checks) and print one table of target / measured /
     met. The full run takes about 10 minutes on two cores; raw outputs go to OUT/raw/."""
     from .firmware import find_binary
-    from .targets import Options, default_datasets_dir, run_targets, summary
+    from .targets import Options, default_datasets_dir, load_previous, previous_of, run_targets, summary
 
     try:
         wanted = tuple(sorted({int(x) for x in issues.split(",") if x.strip()}))
@@ -863,14 +865,20 @@ def targets_cmd(binary: Path | None, datasets: Path | None, out: Path, issues: s
                   issues=wanted, detect_frames=12 if quick else frames, detect_seed=detect_seed,
                   suite_count=4 if quick else scenarios, suite_seed=suite_seed, jobs=jobs,
                   bench_repeats=1 if quick else repeats, config=config_file)
+    prev = load_previous(against) if against is not None else None
     t0 = __import__("time").monotonic()
-    rows, page = run_targets(opt, log=lambda s: err_console.print(s))
+    rows, page = run_targets(opt, log=lambda s: err_console.print(s), prev=prev)
     table = Table(title=f"issue targets{' (quick: small samples)' if quick else ''}")
-    for col in ("issue", "target", "required", "measured", ""):
+    for col in ("issue", "target", "required", *(("before",) if prev is not None else ()), "measured", ""):
         table.add_column(col)
     mark = {True: "[green]met[/]", False: "[red]missed[/]", None: "[yellow]not measured[/]"}
+    plain = {True: "met", False: "missed", None: "not measured"}
     for t in rows:
-        table.add_row(str(t.issue), escape(t.name), escape(t.target), escape(t.measured), mark[t.met])
+        before = ()
+        if prev is not None:
+            p = previous_of(t, prev)
+            before = (escape(f"{p['measured']} ({plain[p['met']]})") if p else "-",)
+        table.add_row(str(t.issue), escape(t.name), escape(t.target), *before, escape(t.measured), mark[t.met])
     console.print(table)
     s = summary(rows)
     console.print(f"{s['met']} met, {s['missed']} missed, {s['not_measured']} not measured "

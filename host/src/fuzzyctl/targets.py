@@ -141,6 +141,22 @@ def eval_targets(clean: dict[str, Any], radiometric: dict[str, dict[str, Any]]) 
     return rows
 
 
+def eval_speed_targets(clean: dict[str, Any]) -> list[Target]:
+    """Issue 2's speed target on every evaluated set: `eval` times fuzzystereo and StereoSGBM on the same
+    frames in the same process (all threads, one run per frame: noisier than `bench`, but every frame)."""
+    rows = []
+    for name, v in clean.get("sets", {}).items():
+        fz, sg = v.get("fuzzystereo"), v.get("sgbm")
+        if not fz or not sg or not sg.get("ms_per_frame"):
+            continue
+        ratio = fz["ms_per_frame"] / sg["ms_per_frame"]
+        rows.append(Target(2, f"speed {name}, every frame ({fz['frames']}), from eval (all threads, one run each)",
+                           "<= 1.00x StereoSGBM 3-way",
+                           f"{ratio:.2f}x ({_f(fz['ms_per_frame'], 1)} vs {_f(sg['ms_per_frame'], 1)} ms per frame)",
+                           ratio <= 1.0, {"ratio": ratio}))
+    return rows
+
+
 def bench_targets(benches: dict[str, dict[str, Any]]) -> list[Target]:
     """Issue 2's speed rows from `bench --json` per frame: fuzzystereo / SGBM 3-way <= 1 at each thread count."""
     rows = []
@@ -183,7 +199,7 @@ def detect_targets(de: dict[str, Any]) -> list[Target]:
 def suite_targets(s: dict[str, Any]) -> list[Target]:
     """Issue 5's suite rows from `sim suite --json`."""
     contacts = s["collisions"] + s["struck"]
-    return [
+    rows = [
         Target(5, f"closed-loop suite: goal reached ({s['solvable']} scenarios with a free path, seed {s['seed']})",
                f">= {SUITE_SUCCESS_PCT:.0f} %", f"{s['reached']}/{s['solvable']} ({_f(s['success_pct'], 1)} %)",
                s["success_pct"] >= SUITE_SUCCESS_PCT, {}),
@@ -192,6 +208,9 @@ def suite_targets(s: dict[str, Any]) -> list[Target]:
         Target(5, f"closed-loop suite: safe stop without a free path ({s['blocked']} scenarios)", "100 %",
                f"{s['blocked_safe_stop']}/{s['blocked']}", s["blocked_safe_stop"] == s["blocked"], {}),
     ]
+    if s.get("errors"):
+        rows.append(Target(5, "closed-loop suite: scenarios that ended in an error", "0", str(s["errors"]), False, {}))
+    return rows
 
 
 def watchdog_targets(sim_run: dict[str, Any] | None, wall_run: dict[str, Any] | None) -> list[Target]:
@@ -349,6 +368,7 @@ def measure(opt: Options, log: Callable[[str], None] = lambda s: None) -> tuple[
                                                 "--repeats", str(opt.bench_repeats), *r.cfg()],
                                                "bench_" + frame.replace("/", "_") + ".json")
                 rows += bench_targets(benches)
+                rows += eval_speed_targets(clean)
             else:
                 why = f"datasets not found at {opt.datasets} (set FUZZYSTEREO_DATASETS or --datasets)"
                 rows.append(Target(2, "accuracy, radiometric and speed targets", "see issue 2", why, None))
@@ -380,6 +400,21 @@ def measure(opt: Options, log: Callable[[str], None] = lambda s: None) -> tuple[
 # --------------------------------------------------------------------------------------------
 # Output
 # --------------------------------------------------------------------------------------------
+
+def load_previous(path: Path) -> dict[str, dict[str, Any]]:
+    """Rows of an earlier `targets.json` by (issue, name), for the "before" column."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise FatalError(f"{path}: cannot read an earlier targets.json: {exc}") from exc
+    if doc.get("format") != "fuzzystereo-targets":
+        raise FatalError(f"{path}: not a targets.json (format {doc.get('format')!r})")
+    return {f"{t['issue']}:{t['name']}": t for t in doc.get("targets", [])}
+
+
+def previous_of(t: Target, prev: dict[str, dict[str, Any]] | None) -> dict[str, Any] | None:
+    return None if prev is None else prev.get(f"{t.issue}:{t.name}")
+
 
 def summary(rows: Iterable[Target]) -> dict[str, int]:
     rows = list(rows)
@@ -425,7 +460,8 @@ def _speed_chart(rows: list[Target]) -> str | None:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path) -> None:
+def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path,
+               prev: dict[str, dict[str, Any]] | None = None) -> None:
     s = summary(rows)
     badge = {True: ("met", "#1a7f37"), False: ("missed", "#cf222e"), None: ("not measured", "#6e7781")}
     parts = [
@@ -440,10 +476,15 @@ def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path
         f"{', config <code>' + html.escape(str(opt.config)) + '</code>' if opt.config else ''}; {time.strftime('%Y-%m-%d %H:%M')}.</p>",
     ]
     for issue in sorted({t.issue for t in rows}):
-        parts.append(f"<h2>Issue {issue}</h2><table><tr><th>target</th><th>required</th><th>measured</th><th></th></tr>")
+        before = "<th>before</th>" if prev is not None else ""
+        parts.append(f"<h2>Issue {issue}</h2><table><tr><th>target</th><th>required</th>{before}<th>measured</th><th></th></tr>")
         for t in (t for t in rows if t.issue == issue):
             label, colour = badge[t.met]
-            parts.append(f"<tr><td>{html.escape(t.name)}</td><td>{html.escape(t.target)}</td>"
+            cell = ""
+            if prev is not None:
+                p = previous_of(t, prev)
+                cell = f"<td>{html.escape(p['measured']) + ' (' + badge[p['met']][0] + ')' if p else '-'}</td>"
+            parts.append(f"<tr><td>{html.escape(t.name)}</td><td>{html.escape(t.target)}</td>{cell}"
                          f"<td>{html.escape(t.measured)}</td><td><span class='b' style='background:{colour}'>{label}</span></td></tr>")
         parts.append("</table>")
         if issue == 2:
@@ -455,13 +496,14 @@ def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path
     path.write_text("".join(parts))
 
 
-def run_targets(opt: Options, log: Callable[[str], None] = lambda s: None) -> tuple[list[Target], Path]:
+def run_targets(opt: Options, log: Callable[[str], None] = lambda s: None,
+                prev: dict[str, dict[str, Any]] | None = None) -> tuple[list[Target], Path]:
     """Measure, then write OUT/targets.json and OUT/index.html; (rows, the HTML path)."""
     opt.out.mkdir(parents=True, exist_ok=True)
     rows, commands = measure(opt, log)
     write_json(rows, commands, opt, opt.out / "targets.json")
     page = opt.out / "index.html"
-    write_html(rows, commands, opt, page)
+    write_html(rows, commands, opt, page, prev)
     return rows, page
 
 
