@@ -70,7 +70,7 @@ void run_detect(const DetectOptions& o) {
   const Detector detector(dp);
   const DetectResult r = detector.detect(disp, rgb, calib);
 
-  std::filesystem::create_directories(o.out);
+  make_output_dir(o.out);
   nlohmann::json j = obstacles_json(r, calib, disp.width, disp.height);
   j["left"] = o.left;
   j["disparity_source"] = matched ? "matcher" : o.disparity;

@@ -244,7 +244,7 @@ std::string without_densify_section(const std::string& toml) {
 }
 
 void check_cache_config(const stdfs::path& dir, const std::string& matcher_toml) {
-  stdfs::create_directories(dir);
+  make_output_dir(dir.string());
   const stdfs::path mp = dir / "disparity_map.txt";
   if (stdfs::exists(mp)) {
     std::ifstream f(mp);
@@ -290,6 +290,7 @@ void write_cached_disp(const stdfs::path& p, const ImageI16& disp) {
 }
 
 void run_detect_eval(const EvalOptions& o) {
+  check_output_file("--json", o.json);  // before the frames, not after them
   const stdfs::path root(o.dataset);
   const stdfs::path marker = root / "fuzzystereo_sim.json";
   if (!stdfs::is_regular_file(marker))

@@ -81,9 +81,7 @@ cv::Mat to_gray(const cv::Mat& bgr) {
 
 void write_preview(const std::string& out_dir, const Frame& f, const std::string& what, const cv::Mat& disp) {
   const std::filesystem::path dir = std::filesystem::path(out_dir) / f.set;
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw UserError("cannot create output directory '" + dir.string() + "': " + ec.message());
+  make_output_dir(dir.string());
   write_image((dir / (f.name + "_" + what + ".png")).string(), colorize_disparity(disp, f.max_disparity));
 }
 
@@ -268,7 +266,8 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
   cmd->add_option("--json", opts->json, "Write the per-set, per-method figures to this JSON file");
-  cmd->add_option("--threads", opts->threads, "Threads for every method (0 = all cores; default: config runtime.threads)");
+  cmd->add_option("--threads", opts->threads, "Threads for every method (0 = all cores; default: config runtime.threads)")
+      ->check(CLI::Range(0, 256));
   cmd->add_option("--limit", opts->limit, "Evaluate at most N frames per set (0 = all)")->capture_default_str();
   cmd->add_option("--out", opts->out, "Write colourised disparity PNGs per frame and method to DIR/<set>/");
   cmd->callback([opts] { run_eval(*opts); });

@@ -43,6 +43,10 @@ void run_match(const MatchOptions& o) {
                     o.right + "' is " + std::to_string(rc.cols) + "x" + std::to_string(rc.rows) + "; a rectified pair must match");
   if (o.downscale > 1) {
     const cv::Size s(lc.cols / o.downscale, lc.rows / o.downscale);
+    if (s.width < 1 || s.height < 1)
+      throw UserError("--downscale " + std::to_string(o.downscale) + " leaves no pixel of the " + std::to_string(lc.cols) +
+                      "x" + std::to_string(lc.rows) + " images (at most " +
+                      std::to_string(std::max(1, std::min(lc.cols, lc.rows))) + " for these)");
     cv::resize(lc, lc, s, 0, 0, cv::INTER_AREA);
     cv::resize(rc, rc, s, 0, 0, cv::INTER_AREA);
   }
@@ -56,13 +60,13 @@ void run_match(const MatchOptions& o) {
       throw UserError("labels in '" + o.labels_from + "' do not match the image size");
   }
 
+  make_output_dir(o.out);  // before the work: a bad --out fails at once
   const auto t0 = std::chrono::steady_clock::now();
   const Matcher matcher(params, fis);
   const auto t1 = std::chrono::steady_clock::now();
   const MatchResult r = o.labels_from.empty() ? matcher.match(left, right)
                                               : matcher.match_with_labels(left, right, &ll, &lr);
 
-  std::filesystem::create_directories(o.out);
   const cv::Mat dl = disp_q4_to_float(r.disp_final), dr = disp_q4_to_float(r.disp_right_wta);
   write_disp_kitti(o.out + "/disp_left.png", dl);
   write_disp_kitti(o.out + "/disp_right.png", dr);
@@ -109,7 +113,7 @@ void add_match_command(CLI::App& app) {
   c->add_option("--config", o->config, "TOML config (defaults: common/config/default.toml)");
   c->add_option("--fis", o->fis, "FIS definition TOML (default: built-in common/fis/fis.toml)");
   c->add_option("--max-disparity", o->max_disparity, "override cost.max_disparity");
-  c->add_option("--threads", o->threads, "override runtime.threads (0 = all cores)");
+  c->add_option("--threads", o->threads, "override runtime.threads (0 = all cores)")->check(CLI::Range(0, 256));
   c->add_option("--downscale", o->downscale, "shrink the inputs by this integer factor first")->check(CLI::Range(1, 8));
   c->add_option("--gt", o->gt, "ground-truth disparity image to score against");
   c->add_option("--gt-scale", o->gt_scale, "ground-truth value per pixel of disparity (KITTI 256, Middlebury 2006 third 3)")

@@ -119,6 +119,7 @@ struct SnapshotRequest {
 };
 
 void run_run(const RunOptions& o) {
+  check_output_file("--json", o.json_out);  // before the mission, not after it
   Config cfg = load_config(o.config);
   LoopOptions lo;
   // ---- serial link: the config store owns the active config ----
@@ -241,7 +242,7 @@ void run_run(const RunOptions& o) {
     j["timing_ms"] = st;
     const char* wait_policy = std::getenv("OMP_WAIT_POLICY");  // main.cpp: passive unless set
     j["omp_wait_policy"] = wait_policy ? wait_policy : "";
-    std::ofstream(o.json_out) << j.dump(2) << '\n';
+    write_text_file("JSON file", o.json_out, j.dump(2) + "\n");
   }
 }
 
@@ -254,6 +255,7 @@ struct SuiteOptions {
 
 void run_suite(const SuiteOptions& o) {
   if (o.count < 0) throw UserError("--count must be >= 0");
+  check_output_file("--json", o.json_out);  // before the suite's minutes of runs
   if (o.snapshot_every < 0) throw UserError("--snapshot-every must be >= 0 (0 = no annotated frames)");
   const int n_blocked = o.blocked >= 0 ? o.blocked : std::max(1, o.count / 10);
   // --only: a subset of the same seeded scenarios ("3,17,b0" = solvable 3 and 17, blocked 0).
@@ -423,7 +425,7 @@ void run_suite(const SuiteOptions& o) {
            {"frame_ms_median", med(total_ms)},
            {"errors", errors},
            {"scenarios", per}};
-    std::ofstream(o.json_out) << j.dump(2) << '\n';
+    write_text_file("JSON file", o.json_out, j.dump(2) + "\n");
   }
   if (errors) throw UserError("suite: " + std::to_string(errors) + " scenario(s) failed to run: " + first_error);
 }

@@ -35,11 +35,7 @@ using json = nlohmann::ordered_json;
 
 constexpr const char* kMarkerName = "fuzzystereo_sim.json";
 
-void make_dir(const stdfs::path& d) {
-  std::error_code ec;
-  stdfs::create_directories(d, ec);
-  if (ec) throw UserError("cannot create output directory '" + d.string() + "': " + ec.message());
-}
+void make_dir(const stdfs::path& d) { make_output_dir(d.string()); }
 
 void write_text(const stdfs::path& p, const std::string& text) {
   std::ofstream f(p, std::ios::binary);

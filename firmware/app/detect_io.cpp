@@ -191,7 +191,7 @@ cv::Mat draw_overlay(const cv::Mat& left_bgr, const DetectResult& r) {
 
 void write_detect_dump(const std::string& dir, const ImageI16& disp, const ImageRgb8& rgb, const StereoCalib& calib,
                        const std::string& config_toml, const DetectResult& r) {
-  std::filesystem::create_directories(dir);
+  make_output_dir(dir);
   const std::size_t h = std::size_t(disp.height), w = std::size_t(disp.width);
   write_npy(dir + "/disp.npy", disp.data.data(), {h, w});
   if (!rgb.empty()) write_npy(dir + "/left_rgb.npy", reinterpret_cast<const std::uint8_t*>(rgb.data.data()), {h, w, 3});

@@ -15,7 +15,7 @@ namespace fs::app {
 void write_match_dump(const std::string& dir, const std::string& left_name, const std::string& right_name,
                       const MatcherParams& params, const FisDefinition& fis, const ImageU8& left, const ImageU8& right,
                       const MatchResult& r) {
-  std::filesystem::create_directories(dir);
+  make_output_dir(dir);
   const std::size_t h = std::size_t(left.height), w = std::size_t(left.width);
   write_image(dir + "/left.png", to_mat(left));
   write_image(dir + "/right.png", to_mat(right));

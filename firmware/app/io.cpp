@@ -1,13 +1,41 @@
 #include "io.hpp"
 
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+
+#include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace fs::app {
+
+void check_output_file(const std::string& what, const std::string& path) {
+  if (path.empty()) return;
+  const std::filesystem::path p(path);
+  const std::filesystem::path dir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec))
+    throw UserError(what + " '" + path + "': directory '" + dir.string() + "' does not exist");
+  if (std::filesystem::is_directory(p, ec)) throw UserError(what + " '" + path + "' is a directory");
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw UserError(what + " '" + path + "': directory '" + dir.string() + "' is not writable (" + std::strerror(errno) + ")");
+}
+
+void write_text_file(const std::string& what, const std::string& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f << text;
+  f.flush();
+  if (!f) throw UserError("cannot write " + what + " '" + path + "'");
+}
+
+void make_output_dir(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw UserError("cannot create output directory '" + dir + "': " + ec.message());
+}
 
 cv::Mat read_image(const std::string& path, int flags) {
   if (!std::filesystem::exists(path)) throw UserError("image '" + path + "' does not exist");

@@ -19,6 +19,15 @@ class UserError : public std::runtime_error {
 
 namespace app {
 
+// Fails fast, before a long run, when `path` cannot be written later: its directory must exist and be
+// writable (UserError naming `what`, the path and the reason). Empty path: nothing to check.
+void check_output_file(const std::string& what, const std::string& path);
+// Writes `text` to `path`; UserError naming `what` and the path when the file cannot be written completely.
+void write_text_file(const std::string& what, const std::string& path, const std::string& text);
+
+// Creates an output directory and its parents; throws UserError naming it (and the reason) when it cannot.
+void make_output_dir(const std::string& dir);
+
 // Reads an image; throws UserError naming the file when it is missing or undecodable.
 cv::Mat read_image(const std::string& path, int flags);
 // Any 8-bit 1/3/4-channel Mat -> 8-bit grey core image.

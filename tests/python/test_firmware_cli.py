@@ -86,6 +86,21 @@ def test_size_mismatch(firmware_bin, pair, tmp_path):
     assert_user_error(p, "small.png", "96x64", "12x10")
 
 
+def test_output_directory_that_cannot_be_created(firmware_bin, pair, tmp_path):
+    left, right = pair
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the output directory should go\n")
+    p = run(firmware_bin, "match", "--left", str(left), "--right", str(right), "--out", str(blocker / "out"))
+    assert_user_error(p, "cannot create output directory", str(blocker / "out"))
+
+
+def test_downscale_that_leaves_no_pixel(firmware_bin, tmp_path):
+    tiny = tmp_path / "tiny.png"
+    cv2.imwrite(str(tiny), np.full((5, 7), 90, np.uint8))
+    p = run(firmware_bin, "match", "--left", str(tiny), "--right", str(tiny), "--downscale", "8", "--out", str(tmp_path / "o"))
+    assert_user_error(p, "--downscale 8", "7x5")
+
+
 @pytest.mark.parametrize("toml, needles", [
     ("[cost]\nmax_disparity = 999\n", ["cost.max_disparity", "[2, 256]"]),
     ("[esr]\nwindow = 4\n", ["esr.window", "odd"]),
@@ -126,3 +141,18 @@ def test_eval_rejects_a_negative_noise_seed(firmware_bin, tmp_path):
 def test_fis_eval_rejects_out_of_range(firmware_bin):
     p = run(firmware_bin, "fis", "eval", stdin="0.5 0.5\n1.5 0.2\n")
     assert_user_error(p, "line 2")
+
+
+@pytest.mark.parametrize("args", [
+    ["sim", "suite", "--count", "50"],
+    ["run", "--source", "sim", "--motors", "sim", "--max-frames", "50"],
+    ["sim", "track-eval"],
+])
+def test_json_output_that_cannot_be_written_fails_before_the_run(firmware_bin, tmp_path, args):
+    # A mistyped --json directory must not cost the run's minutes and then lose its results.
+    import time
+
+    t0 = time.monotonic()
+    p = run(firmware_bin, *args, "--json", str(tmp_path / "no-such-dir" / "r.json"))
+    assert_user_error(p, "no-such-dir")
+    assert time.monotonic() - t0 < 20
