@@ -911,6 +911,15 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         err_console.print("fuzzyctl: interrupted")
         return 130
+    except OSError as exc:
+        # A file or directory the command could not create, read or write (e.g. --out in a
+        # read-only place): one line naming it, as for every other user error.
+        if state.verbose:
+            traceback.print_exc()
+        what = exc.strerror or str(exc)
+        name = f": {exc.filename}" if exc.filename else ""
+        err_console.print(f"[bold red]fuzzyctl: error:[/] {escape(what + name)}", soft_wrap=True)
+        return 2
     return rv if isinstance(rv, int) else 0
 
 
