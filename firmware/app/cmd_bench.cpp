@@ -32,6 +32,7 @@ struct BenchOptions {
   std::string dataset;  // empty: $FUZZYSTEREO_DATASETS or ../shared/datasets, synthetic if absent
   std::string frame;
   std::string config;
+  std::string fis;
   std::string json;
   int repeats = 5;
 };
@@ -170,7 +171,7 @@ RunFigures bench_at(const BenchInput& in, MatcherParams params, const FisDefinit
 void run_bench(const BenchOptions& o) {
   if (o.repeats < 1) throw UserError("--repeats must be >= 1");
   const MatcherParams params = load_matcher_config(o.config);
-  const FisDefinition fis = load_fis_definition("");
+  const FisDefinition fis = load_fis_definition(o.fis);
   const BenchInput in = choose_input(o);
   std::ofstream json_out;  // opened now so a bad path fails before the run, not after it
   if (!o.json.empty()) {
@@ -243,6 +244,7 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--frame", opts->frame, "Frame name or SET/NAME (default: the first KITTI 2015 frame)");
   cmd->add_option("--repeats", opts->repeats, "Timed runs per method; the median is reported")->capture_default_str();
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
+  cmd->add_option("--fis", opts->fis, "FIS definition TOML (default: built-in common/fis/fis.toml)");
   cmd->add_option("--json", opts->json, "Write the figures to this JSON file");
   cmd->callback([opts] { run_bench(*opts); });
 }

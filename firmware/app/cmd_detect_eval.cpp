@@ -31,7 +31,7 @@ namespace stdfs = std::filesystem;
 namespace {
 
 struct EvalOptions {
-  std::string dataset, json, config, disparity_cache;
+  std::string dataset, json, config, disparity_cache, fis;
   int limit = 0;
   int max_disparity = 0;
   bool oracle = false;
@@ -323,8 +323,11 @@ void run_detect_eval(const EvalOptions& o) {
   esr_params.densify = DensifyParams{};
   esr_params.densify.enabled = false;
   std::unique_ptr<Matcher> matcher;
-  if (!o.oracle) matcher = std::make_unique<Matcher>(esr_params, load_fis_definition(""));
+  if (!o.oracle) matcher = std::make_unique<Matcher>(esr_params, load_fis_definition(o.fis));
   const bool use_cache = !o.oracle && !o.disparity_cache.empty();
+  if (use_cache && !o.fis.empty())
+    throw UserError("--fis with --disparity-cache: the cache records the matcher config, not the FIS; use a fresh cache "
+                    "directory without --fis, or no cache");
   if (use_cache) check_cache_config(o.disparity_cache, config_to_toml(esr_params));
   double densify_ms = 0;  // all frames, also cached ones
   bool timed = !o.oracle;  // false once a frame's disparity came from the cache (no matcher timing)
@@ -453,6 +456,7 @@ void add_detect_eval_command(CLI::App& app) {
   c->add_option("--dataset", o->dataset, "dataset root (holds fuzzystereo_sim.json and training/)")->required();
   c->add_option("--json", o->json, "write the metrics (per type, overall, per frame) as JSON");
   c->add_option("--config", o->config, "TOML config (defaults: common/config/default.toml)");
+  c->add_option("--fis", o->fis, "FIS definition TOML (default: built-in common/fis/fis.toml); not with --disparity-cache");
   c->add_option("--limit", o->limit, "first N frames only")->check(CLI::NonNegativeNumber);
   c->add_option("--max-disparity", o->max_disparity, "override cost.max_disparity (default: the dataset's max_disparity)");
   c->add_option("--disparity-cache", o->disparity_cache,

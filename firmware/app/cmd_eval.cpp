@@ -42,6 +42,7 @@ struct EvalOptions {
   std::string radiometric = "none";
   std::uint64_t noise_seed = kRadioNoiseSeed;  // --noise-seed (radiometric "noise" only)
   std::string config;
+  std::string fis;  // --fis: FIS definition TOML (default: the built-in common/fis/fis.toml)
   std::string json;
   std::string out;
   int threads = -1;  // -1: take runtime.threads from the config
@@ -90,7 +91,7 @@ void run_eval(const EvalOptions& o) {
   const std::vector<Baseline> baselines = parse_baselines(o.baselines);
   check_radiometric_name(o.radiometric);
   MatcherParams params = load_matcher_config(o.config);
-  const FisDefinition fis = load_fis_definition("");
+  const FisDefinition fis = load_fis_definition(o.fis);
   if (o.limit < 0) throw UserError("--limit must be >= 0 (0 = all frames)");
   int threads = o.threads >= 0 ? o.threads : params.runtime.threads;
   if (threads <= 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -265,6 +266,7 @@ void add_eval_command(CLI::App& app) {
           "SEED"))
       ->capture_default_str();
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
+  cmd->add_option("--fis", opts->fis, "FIS definition TOML (default: built-in common/fis/fis.toml)");
   cmd->add_option("--json", opts->json, "Write the per-set, per-method figures to this JSON file");
   cmd->add_option("--threads", opts->threads, "Threads for every method (0 = all cores; default: config runtime.threads)")
       ->check(CLI::Range(0, 256));
