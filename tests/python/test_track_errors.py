@@ -57,6 +57,25 @@ def test_signed_errors_per_bearing_band_and_velocity_errors(tmp_path: Path) -> N
     assert r["velocity"]["static"]["median_mps"] == pytest.approx(0.3, abs=1e-9)
 
 
+def test_movers_filtered_against_raw_and_velocity_from_the_10th_hit(tmp_path: Path) -> None:
+    # _record puts the track's state on its measurement (filtered = raw); move the state halfway back to
+    # the truth and check that the filtered error is half the raw one. Hits run 5..14: from the 10th on,
+    # 5 of the 10 frames count for the velocity.
+    a = _record(tmp_path, "a", 5.0, 0.0, 0.1, 0.2, moving=True)
+    lines = [json.loads(x) for x in (a / "frames.jsonl").read_text().splitlines()]
+    for f in lines:
+        tr = f["tracks"][0]
+        tr["p"] = [tr["last"][0] - 0.05, tr["last"][1]]
+    (a / "frames.jsonl").write_text("\n".join(json.dumps(f) for f in lines) + "\n")
+    b = _record(tmp_path, "b", 5.0, 0.0, 0.1, 0.3, moving=False)  # static: not in the movers' figures
+    m = track_errors([a, b])["movers"]
+    assert m["n"] == 10
+    assert m["raw_pos_rmse_m"] == pytest.approx(0.1, abs=1e-9)
+    assert m["filt_pos_rmse_m"] == pytest.approx(0.05, abs=1e-9)
+    assert m["vel_after10_n"] == 5
+    assert m["vel_after10_median_mps"] == pytest.approx(0.2, abs=1e-9)
+
+
 def test_cli_prints_tables_and_writes_json(tmp_path: Path, capsys) -> None:
     a = _record(tmp_path, "a", 25.0, 0.05, 0.0, 0.0, moving=True)
     out = tmp_path / "e.json"

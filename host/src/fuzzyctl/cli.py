@@ -708,6 +708,12 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
         v.add_row(kind, str(row["n"]), "-" if row["median_mps"] is None else f"{row['median_mps']:.3f}",
                   "-" if row["p90_mps"] is None else f"{row['p90_mps']:.3f}")
     console.print(v)
+    m = r["movers"]
+    if m["n"]:
+        console.print(f"moving obstacles, {m['n']} track updates: position RMSE filtered {m['filt_pos_rmse_m']:.3f} m vs "
+                      f"raw measurement {m['raw_pos_rmse_m']:.3f} m; velocity error from the 10th hit on "
+                      f"({m['vel_after10_n']} updates): median {m['vel_after10_median_mps']:.3f}, "
+                      f"RMS {m['vel_after10_rms_mps']:.3f}, p95 {m['vel_after10_p95_mps']:.3f} m/s")
     if json_out is not None:
         json_out.write_text(_json.dumps(r, indent=2) + "\n")
         console.print(f"wrote {json_out}")

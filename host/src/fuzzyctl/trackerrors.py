@@ -15,6 +15,11 @@ Two figures, both matched to the nearest round obstacle of the world at the fram
   instead of along the ray (docs/robot.md "Session 12");
 - **velocity error** ``|v_track - v_true|`` of confirmed tracks updated this frame with at least
   ``min_hits`` hits, for moving and for static obstacles (a static obstacle's track should read 0).
+
+And issue 5's tracking targets on the vision pipeline's own measurements (``targets``): for every
+track updated this frame whose measurement lies within ``match_m`` of a *moving* obstacle, the
+filtered position's error against the raw measurement's (RMSE over those frames), and the velocity
+error of such tracks from their 10th hit on ("within 0.1 m/s after 10 frames").
 """
 
 from __future__ import annotations
@@ -63,6 +68,9 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
         raise FatalError("no run record given")
     meas: dict[tuple[int, int], list[tuple[float, float, float]]] = {b: [] for b in BEARING_BANDS}
     vel: dict[str, list[float]] = {"moving": [], "static": []}
+    filt_sq: list[float] = []
+    raw_sq: list[float] = []
+    vel10: list[float] = []
     for run_dir in run_dirs:
         run, frames = load_run(run_dir)
         circles = _circles(run, Path(run_dir))
@@ -88,6 +96,12 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
                         if band[0] <= bearing < band[1]:
                             meas[band].append((outward, e_fwd, math.hypot(ex, ey)))
                             break
+                    _, _, tvx, tvy = obstacle_state(o, t)
+                    if math.hypot(tvx, tvy) > 0.01 and "p" in tr:
+                        raw_sq.append(ex * ex + ey * ey)
+                        filt_sq.append((tr["p"][0] - ox) ** 2 + (tr["p"][1] - oy) ** 2)
+                        if tr.get("hits", 0) >= 10 and "v" in tr:
+                            vel10.append(math.hypot(tr["v"][0] - tvx, tr["v"][1] - tvy))
                 if not tr.get("confirmed") or tr.get("hits", 0) < min_hits:
                     continue
                 hit = _nearest(circles, t, *tr["p"])
@@ -108,4 +122,13 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
     for kind, v in vel.items():
         out["velocity"][kind] = {"n": len(v), "median_mps": statistics.median(v) if v else None,
                                  "p90_mps": _quantile(v, 0.9) if v else None}
+    out["movers"] = {
+        "n": len(raw_sq),
+        "filt_pos_rmse_m": math.sqrt(sum(filt_sq) / len(filt_sq)) if filt_sq else None,
+        "raw_pos_rmse_m": math.sqrt(sum(raw_sq) / len(raw_sq)) if raw_sq else None,
+        "vel_after10_n": len(vel10),
+        "vel_after10_rms_mps": math.sqrt(sum(v * v for v in vel10) / len(vel10)) if vel10 else None,
+        "vel_after10_median_mps": statistics.median(vel10) if vel10 else None,
+        "vel_after10_p95_mps": _quantile(vel10, 0.95) if vel10 else None,
+    }
     return out
