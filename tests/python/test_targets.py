@@ -79,7 +79,7 @@ def test_bench_verdict_is_the_ratio_at_each_thread_count():
 
 
 def test_detect_verdicts():
-    de = {"overall": {"frames": 300, "gt_obstacles": 1000, "detection_rate": 0.97, "detection_rate_box_only": 0.98,
+    de = {"overall": {"frames": 300, "gt_obstacles": 1000, "detected": 970, "detection_rate": 0.97, "detection_rate_box_only": 0.98,
                       "false_positives_per_frame": 0.11, "road_iou": 0.9, "distance_rel_error_median": 0.051,
                       "distance_rel_error_p90": 0.1,
                       "ms_per_frame": {"detect_over_matcher": 1.0, "detect_total": 20.0, "matcher_total": 20.0}},
@@ -190,3 +190,13 @@ def test_vision_tracking_rows():
     assert [t.met for t in rows] == [False, True]
     none = vision_tracking_targets({"movers": {"n": 0}}, 5)
     assert len(none) == 1 and none[0].met is None
+
+
+def test_wilson_interval():
+    from fuzzyctl.targets import wilson
+
+    lo, hi = wilson(94, 100)
+    assert lo == pytest.approx(0.8752, abs=5e-4) and hi == pytest.approx(0.9722, abs=5e-4)
+    assert wilson(0, 0) == (0.0, 1.0)
+    lo, hi = wilson(10, 10)
+    assert hi == pytest.approx(1.0) and lo == pytest.approx(0.7225, abs=5e-4)
