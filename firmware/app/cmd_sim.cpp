@@ -37,11 +37,7 @@ constexpr const char* kMarkerName = "fuzzystereo_sim.json";
 
 void make_dir(const stdfs::path& d) { make_output_dir(d.string()); }
 
-void write_text(const stdfs::path& p, const std::string& text) {
-  std::ofstream f(p, std::ios::binary);
-  f << text;
-  if (!f) throw UserError("cannot write '" + p.string() + "'");
-}
+void write_text(const stdfs::path& p, const std::string& text) { write_text_file("file", p.string(), text); }
 
 cv::Mat to_bgr(const ImageRgb8& im) {
   cv::Mat m(im.height, im.width, CV_8UC3);
