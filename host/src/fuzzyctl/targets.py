@@ -506,10 +506,48 @@ def _speed_chart(rows: list[Target]) -> str | None:
     ax.set_xlabel("ms per frame (stacked: fuzzystereo stages; black bar: StereoSGBM 3-way)")
     ax.legend(fontsize=7, ncol=4, loc="lower right")
     ax.invert_yaxis()
+    return _png(fig)
+
+
+def _png(fig) -> str:
+    import matplotlib.pyplot as plt
+
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _radiometric_chart(rows: list[Target]) -> str | None:
+    """bad-2 per set: clean, each distortion, StereoSGBM under it, and the 1.25x line."""
+    rad = [t for t in rows if t.name.startswith("radiometric '") and t.details.get("cells")]
+    if not rad:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sets = [c["set"] for c in rad[0].details["cells"]]
+    fig, axes = plt.subplots(1, len(rad), figsize=(3.2 * len(rad), 3.2), sharey=True, squeeze=False)
+    for ax, t in zip(axes[0], rad):
+        cells = {c["set"]: c for c in t.details["cells"]}
+        xs = range(len(sets))
+        clean = [cells[s]["clean"] if s in cells else 0 for s in sets]
+        dist = [cells[s]["distorted"] if s in cells else 0 for s in sets]
+        sgbm = [cells[s]["sgbm"] or 0 if s in cells else 0 for s in sets]
+        ax.bar([x - 0.27 for x in xs], clean, 0.27, color="#999", label="clean")
+        ax.bar(list(xs), dist, 0.27, color=["#1a7f37" if cells.get(s, {}).get("ratio_ok") and cells.get(s, {}).get("sgbm_ok")
+                                            else "#cf222e" for s in sets], label="distorted")
+        ax.bar([x + 0.27 for x in xs], sgbm, 0.27, color="#6e7781", alpha=0.6, label="SGBM distorted")
+        for x, c in zip(xs, clean):
+            ax.plot([x - 0.4, x + 0.4], [RADIOMETRIC_RATIO * c] * 2, color="k", lw=1)
+        ax.set_title(t.name.split(":")[0], fontsize=9)
+        ax.set_xticks(list(xs), [s.replace("middlebury", "midd") for s in sets], rotation=60, fontsize=7)
+    axes[0][0].set_ylabel("bad-2 %")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle("fuzzystereo bad-2 (green: within 1.25x clean (black line) and below SGBM; red: not)", fontsize=9)
+    return _png(fig)
 
 
 def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path,
@@ -540,9 +578,9 @@ def write_html(rows: list[Target], commands: list[str], opt: Options, path: Path
                          f"<td>{html.escape(t.measured)}</td><td><span class='b' style='background:{colour}'>{label}</span></td></tr>")
         parts.append("</table>")
         if issue == 2:
-            chart = _speed_chart(rows)
-            if chart:
-                parts.append(f"<p><img src='{chart}' alt='stage timings against StereoSGBM'></p>")
+            for chart, alt in ((_radiometric_chart(rows), "radiometric cells"), (_speed_chart(rows), "stage timings")):
+                if chart:
+                    parts.append(f"<p><img src='{chart}' alt='{alt}'></p>")
     parts.append("<h2>Commands run</h2><pre>" + html.escape("\n".join(commands)) + "</pre>")
     parts.append("<p>Raw results of each command: <code>raw/</code> beside this page.</p></body></html>")
     path.write_text("".join(parts))
