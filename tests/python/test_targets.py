@@ -86,6 +86,11 @@ def test_detect_verdicts():
           "per_type": {}}
     rows = detect_targets(de)
     assert [t.met for t in rows] == [True, False, True, False, False]
+    from fuzzyctl.targets import oracle_target
+
+    assert oracle_target(de).met is False  # 0.11 FP per frame
+    de["overall"]["false_positives_per_frame"] = 0.1
+    assert oracle_target(de).met is True
 
 
 def test_suite_verdicts_count_struck_as_contacts():
@@ -151,7 +156,7 @@ def test_targets_quick_run_measures_every_row(firmware_bin, datasets_root, tmp_p
     # every other row's verdict is a boolean computed from the raw JSON kept beside it
     assert all(isinstance(t["met"], bool) for t in doc["targets"] if t["name"] not in unmeasured)
     raw = {p.name for p in (out / "raw").iterdir()}
-    assert {"eval_clean.json", "detect_eval.json", "suite.json", "watchdog_wall.json", "track_eval.json"} <= raw
+    assert {"eval_clean.json", "detect_eval.json", "detect_eval_oracle.json", "suite.json", "watchdog_wall.json", "track_eval.json"} <= raw
     html = (out / "index.html").read_text()
     assert "data:image/png;base64," in html  # the stage chart
 

@@ -213,6 +213,15 @@ def detect_targets(de: dict[str, Any]) -> list[Target]:
     return rows
 
 
+def oracle_target(de: dict[str, Any]) -> Target:
+    """Context for issue 4: the same frames with the exact disparity (the detection stages' own limit)."""
+    o = de["overall"]
+    return Target(4, "detection with the exact disparity instead of the matcher's (the detector alone), same frames",
+                  f">= {DETECTION_RATE:.0%} at <= {FP_PER_FRAME} FP per frame",
+                  f"{o['detection_rate']:.1%} at {o['false_positives_per_frame']:.2f} FP per frame",
+                  o["detection_rate"] >= DETECTION_RATE and o["false_positives_per_frame"] <= FP_PER_FRAME, {})
+
+
 def suite_targets(s: dict[str, Any]) -> list[Target]:
     """Issue 5's suite rows from `sim suite --json`."""
     contacts = s["collisions"] + s["struck"]
@@ -419,6 +428,8 @@ def measure(opt: Options, log: Callable[[str], None] = lambda s: None) -> tuple[
             gen = tmp / "generated"
             r.fw(["sim", "generate", "--count", str(opt.detect_frames), "--seed", str(opt.detect_seed), "--out", gen])
             rows += detect_targets(r.fw_json(["detect-eval", "--dataset", gen, *r.cfg()], "detect_eval.json"))
+            oracle = r.fw_json(["detect-eval", "--dataset", gen, "--oracle-disparity", *r.cfg()], "detect_eval_oracle.json")
+            rows.append(oracle_target(oracle))
             rows.append(check_target(4, "bad scene file (negative baseline, unknown texture, obstacle below ground)",
                                      _bad_input_checks_issue4(r, tmp)))
         if 5 in opt.issues:
