@@ -74,9 +74,10 @@ def save(fig, path: str | Path) -> Path:
     return path
 
 
-def png_bytes(fig, dpi: int = 90) -> bytes:
+def png_bytes(fig, dpi: int = 90, tight: bool = False) -> bytes:
+    """The figure as PNG bytes; closes it. ``tight`` crops the margins (bbox_inches="tight")."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=dpi, **({"bbox_inches": "tight"} if tight else {}))
     plt.close(fig)
     return buf.getvalue()
 

@@ -74,11 +74,11 @@ def boundaries(grey: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return out
 
 
-def figure_data_uri(fig) -> str:
+def figure_data_uri(fig, dpi: int = 90, tight: bool = False) -> str:
     """A matplotlib figure as an inline PNG (data URI); closes the figure."""
     from .plots import png_bytes
 
-    return "data:image/png;base64," + base64.b64encode(png_bytes(fig)).decode("ascii")
+    return "data:image/png;base64," + base64.b64encode(png_bytes(fig, dpi, tight)).decode("ascii")
 
 
 def _score_scatter(c: Comparison):

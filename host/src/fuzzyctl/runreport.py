@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import json
 import math
 from pathlib import Path
 from typing import Any
 
 from .errors import FatalError
+from .report import figure_data_uri
 from .simworld import obstacle_state
 
 
@@ -54,12 +54,7 @@ def load_run(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
 
 
 def _fig_png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return figure_data_uri(fig, dpi=110, tight=True)
 
 
 def _file_png(path: Path) -> str:
@@ -288,12 +283,7 @@ def _fmt(v: Any) -> str:
 
 
 def _thumb_png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=55, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return figure_data_uri(fig, dpi=55, tight=True)
 
 
 def _run_dirs(record_dir: Path) -> list[Path]:

@@ -13,9 +13,7 @@ from the firmware's JSON, and ``met`` compares it with the issue's number.
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
 import os
 import subprocess
@@ -521,12 +519,9 @@ def _speed_chart(rows: list[Target]) -> str | None:
 
 
 def _png(fig) -> str:
-    import matplotlib.pyplot as plt
+    from .report import figure_data_uri
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return figure_data_uri(fig, dpi=100, tight=True)
 
 
 def _radiometric_chart(rows: list[Target]) -> str | None:
