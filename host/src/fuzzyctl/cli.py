@@ -859,7 +859,8 @@ def targets_cmd(binary: Path | None, datasets: Path | None, out: Path, issues: s
     stall on both clocks, track-eval, the bad-input checks) and print one table of target / measured /
     met. The full run takes about 10 minutes on two cores; raw outputs go to OUT/raw/."""
     from .firmware import find_binary
-    from .targets import Options, default_datasets_dir, load_previous, previous_of, run_targets, summary
+    from .paths import default_datasets_dir
+    from .targets import Options, load_previous, previous_of, run_targets, summary
 
     try:
         wanted = tuple(sorted({int(x) for x in issues.split(",") if x.strip()}))

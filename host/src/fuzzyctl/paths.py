@@ -18,6 +18,7 @@ from .errors import FatalError
 
 ENV_COMMON = "FUZZYSTEREO_COMMON"
 ENV_BIN = "FUZZYSTEREO_BIN"
+ENV_DATASETS = "FUZZYSTEREO_DATASETS"
 
 #: <repo>/host/src/fuzzyctl/paths.py -> parents[3] == <repo>
 _REPO_FROM_SOURCE = Path(__file__).resolve().parents[3]
@@ -78,3 +79,12 @@ def default_firmware_binary() -> Path:
         return Path(env)
     root = repo_root() or Path.cwd()
     return root / "build" / "default" / "fuzzystereo"
+
+
+def default_datasets_dir() -> Path:
+    """``$FUZZYSTEREO_DATASETS``, else ``<repo>/../shared/datasets`` (not checked to exist)."""
+    env = os.environ.get(ENV_DATASETS)
+    if env:
+        return Path(env)
+    root = repo_root() or Path.cwd()
+    return root.parent / "shared" / "datasets"
