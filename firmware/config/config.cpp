@@ -170,6 +170,13 @@ MatcherParams to_params(const Values& v) {
   p.cost.noise_gradient_passes = i("cost.noise_gradient_passes");
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
+  p.boundary.enabled = v.flag("boundary.enabled");
+  p.boundary.census_radius = i("boundary.census_radius");
+  p.boundary.window = i("boundary.window");
+  p.boundary.margin = v.num("boundary.margin");
+  p.boundary.step = i("boundary.step");
+  p.boundary.min_jump = i("boundary.min_jump");
+  p.boundary.passes = i("boundary.passes");
   p.lr.max_diff = i("lr_check.max_diff");
   p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
@@ -286,6 +293,11 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nnoise_image_passes = " << p.cost.noise_image_passes
     << "\nnoise_gradient_passes = " << p.cost.noise_gradient_passes << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
+    << "[boundary]\nenabled = " << (p.boundary.enabled ? "true" : "false")
+    << "\ncensus_radius = " << p.boundary.census_radius << "\nwindow = " << p.boundary.window
+    << "\nmargin = " << fmt_num(p.boundary.margin) << (p.boundary.margin == std::floor(p.boundary.margin) ? ".0" : "")
+    << "\nstep = " << p.boundary.step << "\nmin_jump = " << p.boundary.min_jump << "\npasses = " << p.boundary.passes
+    << "\n\n"
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
     << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"

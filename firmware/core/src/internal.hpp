@@ -24,7 +24,10 @@
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define FS_TARGET_CLONES __attribute__((target_clones("avx2", "default")))
 #define FS_TARGET_CLONES_V4 __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+// x86-64-v3 (AVX2 with POPCNT): the census Hamming sums of the boundary refinement (boundary/).
+#define FS_TARGET_CLONES_V3 __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
+#define FS_TARGET_CLONES_V3
 #define FS_TARGET_CLONES
 #define FS_TARGET_CLONES_V4
 #endif

@@ -145,6 +145,16 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
         r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
         r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity_q4);
       });
+  if (p.boundary.enabled) {  // docs/algorithm.md 4b (not in the paper), timed with the WTA
+    ImageU32 census_l, census_r;
+    const int rad = p.boundary.census_radius;
+    detail::run_pair(threads, [&] { census_l = census_transform(left, rad); },
+                     [&] { census_r = census_transform(right, rad); });
+    const int bits = (2 * rad + 1) * (2 * rad + 1) - 1;
+    detail::run_pair(
+        threads, [&] { r.disp_left_wta = refine_boundaries(r.disp_left_wta, r.seg_left, census_l, census_r, +1, p.boundary, bits, nullptr); },
+        [&] { r.disp_right_wta = refine_boundaries(r.disp_right_wta, r.seg_right, census_r, census_l, -1, p.boundary, bits, nullptr); });
+  }
   clock.lap(Stage::Wta);
 
   r.disp_lr = left_right_check(r.disp_left_wta, r.disp_right_wta, p.lr, &r.lr_mask);  // eq. (13)

@@ -35,6 +35,7 @@ using ImageRgb8 = Image<Rgb8>;
 using ImageU16 = Image<std::uint16_t>;
 using ImageI16 = Image<std::int16_t>;
 using ImageI32 = Image<std::int32_t>;
+using ImageU32 = Image<std::uint32_t>;
 
 // ---- Named fixed-point formats ---------------------------------------------------------------
 // Disparity maps: int16, Q11.4 (value = disparity * kDispScale), kInvalidDisp marks "no estimate".

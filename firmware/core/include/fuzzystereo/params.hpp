@@ -41,6 +41,18 @@ struct FisParams {
   int lut_size = 257;
 };
 
+// Segment-boundary refinement of the two WTA maps before eq. (13) (not in the paper;
+// docs/algorithm.md 4b).
+struct BoundaryParams {
+  bool enabled = false;
+  int census_radius = 2;  // census window (2 r + 1)^2 - 1 bits, r <= 2 (24 bits)
+  int window = 5;         // [px], odd: side of the square over which census distances are summed
+  double margin = 1.0;    // [bits per window pixel] a candidate must beat the own disparity by more
+  int step = 4;           // [px] candidates are read at +-step and +-2 step along the row and column
+  int min_jump = 2;       // [px] only disparities this far from the pixel's own are candidates
+  int passes = 1;
+};
+
 struct LrParams {
   int max_diff = 1;  // eq. (13) [px]
 };
@@ -82,6 +94,7 @@ struct MatcherParams {
   SegmentationParams seg;
   CostParams cost;
   FisParams fis;
+  BoundaryParams boundary;
   LrParams lr;
   EsrParams esr;
   DensifyParams densify;

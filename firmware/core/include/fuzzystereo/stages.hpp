@@ -135,6 +135,25 @@ ImageI16 paint_segments(const Segmentation& seg, const std::vector<std::int16_t>
 // Integer pixel of the partner of x for a Q4 disparity: x - round(d).
 inline int partner_x(int x, std::int16_t d_q4) { return x - ((d_q4 + kDispScale / 2) >> kDispShift); }
 
+// ---- boundary/ ------------------------------------------------------------------------------
+// Census transform (not in the paper): bit i set where the i-th neighbour of the
+// (2 radius + 1)^2 window (row-major, centre skipped) is darker than the centre; border replicated.
+// radius <= 2 (24 bits).
+ImageU32 census_transform(const ImageU8& img, int radius);
+// Segment-boundary refinement of a WTA map (not in the paper; docs/algorithm.md 4b), computed
+// segment by segment (`seg` is the segmentation the map was painted from; every pixel belongs to
+// one segment) with one summed-area table of census distances per disparity a segment needs. For every
+// valid pixel, the map's values at +-step and +-2 step along its row and column that differ from
+// its own by >= min_jump px are candidates; the windowed census cost (sum over the window of the
+// Hamming distance between the pixel's census code and its partner's at the rounded disparity,
+// partner column x - direction * d, `census_bits` where the partner is outside the image) of the
+// best candidate replaces the pixel's disparity when it is lower than the own disparity's by more
+// than margin * window^2 (ties keep the earlier candidate). `passes` rounds, each reading the
+// previous round's map. switched (optional): 1 where the final map differs from the input.
+ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const ImageU32& census_ref,
+                           const ImageU32& census_other, int direction, const BoundaryParams& p, int census_bits,
+                           ImageU8* switched);
+
 // ---- lrcheck/ -------------------------------------------------------------------------------
 // eq. (13): keeps d_l(x,y) where |d_l(x,y) - d_r(x - d_l(x,y), y)| <= max_diff, else kInvalidDisp.
 // mask (optional) receives 1 for consistent pixels, 0 otherwise.

@@ -1,0 +1,252 @@
+// Segment-boundary refinement (not in the paper; docs/algorithm.md 4b). The WTA paints one
+// disparity per superpixel; where a segment straddles a depth edge its pixels on the far side of
+// the edge carry the wrong surface's disparity (foreground fattening). Each pixel is offered the
+// disparities painted a few pixels away along its row and column and takes one when its
+// windowed census cost is clearly lower than its own segment's.
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdlib>
+
+#include "fuzzystereo/stages.hpp"
+#include "internal.hpp"
+
+namespace fs {
+
+namespace {
+
+// One row of the census transform; rows above/below clamped by the caller's pointers.
+FS_TARGET_CLONES
+void census_row(const std::uint8_t* const* rows, int w, int radius, std::uint32_t* out) {
+  const std::uint8_t* c = rows[radius];
+  for (int x = 0; x < w; ++x) out[x] = 0;
+  int bit = 0;
+  for (int dy = 0; dy <= 2 * radius; ++dy) {
+    const std::uint8_t* r = rows[dy];
+    for (int dx = -radius; dx <= radius; ++dx) {
+      if (dx == 0 && dy == radius) continue;
+      // Interior columns without clamping (vectorised); the border columns clamp.
+      const int lo = std::max(0, -dx), hi = std::min(w, w - dx);
+      for (int x = 0; x < std::min(lo, w); ++x) out[x] |= std::uint32_t(r[std::clamp(x + dx, 0, w - 1)] < c[x]) << bit;
+      for (int x = lo; x < hi; ++x) out[x] |= std::uint32_t(r[x + dx] < c[x]) << bit;
+      for (int x = std::max(hi, 0); x < w; ++x) out[x] |= std::uint32_t(r[std::clamp(x + dx, 0, w - 1)] < c[x]) << bit;
+      ++bit;
+    }
+  }
+}
+
+}  // namespace
+
+ImageU32 census_transform(const ImageU8& img, int radius) {
+  const int w = img.width, h = img.height;
+  ImageU32 out(w, h, 0);
+  if (w == 0 || h == 0) return out;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* rows[5];
+    for (int dy = -radius; dy <= radius; ++dy) rows[dy + radius] = img.row(std::clamp(y + dy, 0, h - 1));
+    census_row(rows, w, radius, out.row(y));
+  }
+  return out;
+}
+
+namespace {
+
+inline int round_q4(int d) { return (d + kDispScale / 2) >> kDispShift; }
+
+// Bit count of a 32-bit word in plain shifts and masks (SWAR), so that a loop of them vectorises
+// (x86 has no vector popcount before AVX-512; the scalar POPCNT runs one word at a time).
+inline std::uint32_t popcount_swar(std::uint32_t v) {
+  v = v - ((v >> 1) & 0x55555555u);
+  v = (v & 0x33333333u) + ((v >> 2) & 0x33333333u);
+  v = (v + (v >> 4)) & 0x0F0F0F0Fu;
+  return (v * 0x01010101u) >> 24;
+}
+
+// Per-thread scratch of one segment: its pixels that have candidates, and the summed-area tables
+// of the disparities they need (one per rounded disparity, `slot` maps a disparity to its table).
+struct SegScratch {
+  struct Px {
+    std::int32_t x, y;
+    std::int16_t d0;
+    std::int8_t nc;
+    std::uint8_t own_slot;
+    std::int16_t cand[8];
+    std::uint8_t slot[8];
+  };
+  std::vector<Px> px;
+  std::vector<int> ds;                // rounded disparity of each table
+  std::vector<std::int16_t> slot_of;  // [rounded disparity] -> table index, -1 = none
+  std::vector<std::int32_t> tables;   // ds.size() tables of (H_e + 1) x (W_e + 1)
+  std::vector<std::int32_t> hrow;     // one row of Hamming distances (W_e)
+};
+
+struct Ctx {
+  const ImageI16* cur;
+  const ImageU32* cref;
+  const ImageU32* cother;
+  ImageI16* next;
+  int direction, r, bits, margin, jump, step;
+};
+
+// The candidates of pixel (x, y), in the order of the scalar reference: the map's values at -k, +k
+// along the row, -k, +k along the column, then the same at 2k, kept when they differ from d0 by
+// >= jump (Q4). The reference also drops a value whose rounded disparity an earlier candidate has;
+// here such repeats stay (a repeat has the same cost as the earlier one, and only a strictly lower
+// cost replaces the best, so the result is the same — and cheaper than the test).
+inline int gather(const Ctx& c, int x, int y, std::int16_t d0, std::int16_t* cand) {
+  const ImageI16& m = *c.cur;
+  const int w = m.width, h = m.height, k = c.step;
+  const std::int16_t* row = m.row(y);
+  const std::int16_t vals[8] = {row[std::max(x - k, 0)],     row[std::min(x + k, w - 1)],
+                                m.at(x, std::max(y - k, 0)), m.at(x, std::min(y + k, h - 1)),
+                                row[std::max(x - 2 * k, 0)], row[std::min(x + 2 * k, w - 1)],
+                                m.at(x, std::max(y - 2 * k, 0)), m.at(x, std::min(y + 2 * k, h - 1))};
+  int nc = 0;
+  for (const std::int16_t v : vals) {  // branch-free: the outcomes are data-dependent
+    cand[nc] = v;
+    nc += (v != kInvalidDisp) & (std::abs(v - d0) >= c.jump);
+  }
+  return nc;
+}
+
+// Summed-area table over the expanded box [X0, X0 + We) x [Y0, Y0 + He) of the Hamming distance at
+// disparity d of the clamped pixel (the window rule of the reference: window pixels outside the
+// image take the nearest image pixel; partners outside the other image count `bits`).
+FS_TARGET_CLONES_V3
+void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32_t* t, std::int32_t* hrow) {
+  const int w = c.cref->width, h = c.cref->height;
+  const int shift = -c.direction * d;
+  const int stride = We + 1;
+  for (int i = 0; i <= We; ++i) t[i] = 0;
+  // Columns i whose pixel X0 + i and its partner are both inside the images: [ia, ib).
+  const int ia = std::clamp(std::max(0, -shift) - X0, 0, We);
+  const int ib = std::clamp(std::min(w, w - shift) - X0, ia, We);
+  for (int j = 0; j < He; ++j) {
+    const int y = std::clamp(Y0 + j, 0, h - 1);
+    const std::uint32_t* a = c.cref->row(y);
+    const std::uint32_t* b = c.cother->row(y);
+    for (int i = 0; i < ia; ++i) {
+      const int x = std::clamp(X0 + i, 0, w - 1), xo = x + shift;
+      hrow[i] = (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
+    }
+    const std::uint32_t* ax = a + X0;
+    const std::uint32_t* bx = b + X0 + shift;
+    for (int i = ia; i < ib; ++i) hrow[i] = static_cast<std::int32_t>(popcount_swar(ax[i] ^ bx[i]));
+    for (int i = ib; i < We; ++i) {
+      const int x = std::clamp(X0 + i, 0, w - 1), xo = x + shift;
+      hrow[i] = (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
+    }
+    const std::int32_t* up = t + std::size_t(j) * stride;
+    std::int32_t* out = t + std::size_t(j + 1) * stride;
+    out[0] = 0;
+    std::int32_t run = 0;
+    for (int i = 0; i < We; ++i) {
+      run += hrow[i];
+      out[i + 1] = up[i + 1] + run;
+    }
+  }
+}
+
+void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc) {
+  const ImageI16& cur = *c.cur;
+  const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
+  if (rb == re) return;
+  auto slot = [&](int d) {
+    std::int16_t& k = sc.slot_of[d];
+    if (k < 0) k = static_cast<std::int16_t>(sc.ds.size()), sc.ds.push_back(d);
+    return static_cast<std::uint8_t>(k);
+  };
+  sc.px.clear();
+  sc.ds.clear();
+  int x0 = seg.runs[rb].x0, x1 = seg.runs[rb].x1 - 1;
+  const int y0 = seg.runs[rb].y, y1 = seg.runs[re - 1].y;
+  for (std::int32_t ri = rb; ri < re; ++ri) {
+    const Run& run = seg.runs[ri];
+    x0 = std::min(x0, int(run.x0));
+    x1 = std::max(x1, int(run.x1) - 1);
+    const std::int16_t* row = cur.row(run.y);
+    for (int x = run.x0; x < run.x1; ++x) {
+      const std::int16_t d0 = row[x];
+      if (d0 == kInvalidDisp) continue;
+      SegScratch::Px p;
+      p.nc = static_cast<std::int8_t>(gather(c, x, run.y, d0, p.cand));
+      if (p.nc == 0) continue;
+      p.x = x, p.y = run.y, p.d0 = d0;
+      p.own_slot = slot(round_q4(d0));
+      for (int j = 0; j < p.nc; ++j) p.slot[j] = slot(round_q4(p.cand[j]));
+      sc.px.push_back(p);
+    }
+  }
+  if (sc.px.empty()) return;
+  const int r = c.r;
+  const int X0 = x0 - r, Y0 = y0 - r, We = x1 - x0 + 1 + 2 * r, He = y1 - y0 + 1 + 2 * r;
+  const int stride = We + 1;
+  const std::size_t tsize = std::size_t(He + 1) * stride;
+  sc.hrow.resize(std::size_t(We));
+  if (sc.tables.size() < sc.ds.size() * tsize) sc.tables.resize(sc.ds.size() * tsize);
+  for (std::size_t k = 0; k < sc.ds.size(); ++k) {
+    build_table(c, X0, Y0, We, He, sc.ds[k], sc.tables.data() + k * tsize, sc.hrow.data());
+    sc.slot_of[sc.ds[k]] = -1;  // reset for the next segment
+  }
+  const std::int32_t* tables = sc.tables.data();
+  for (const SegScratch::Px& p : sc.px) {
+    // Window sum centred on (x, y): four reads of a table at the same offsets.
+    const int i0 = p.x - r - X0, j0 = p.y - r - Y0;
+    const std::size_t a = std::size_t(j0) * stride + i0, b = a + 2 * r + 1;
+    const std::size_t cc = a + std::size_t(2 * r + 1) * stride, dd = cc + 2 * r + 1;
+    auto window = [&](std::uint8_t k) {
+      const std::int32_t* t = tables + k * tsize;
+      return t[dd] - t[b] - t[cc] + t[a];
+    };
+    int best = window(p.own_slot) - c.margin;  // a candidate must beat this
+    std::int16_t best_d = p.d0;
+    for (int j = 0; j < p.nc; ++j) {
+      const int cost = window(p.slot[j]);
+      const bool better = cost < best;  // ties keep the earlier candidate
+      best = better ? cost : best;
+      best_d = better ? p.cand[j] : best_d;
+    }
+    c.next->at(p.x, p.y) = best_d;
+  }
+}
+
+}  // namespace
+
+ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const ImageU32& census_ref,
+                           const ImageU32& census_other, int direction, const BoundaryParams& p, int census_bits,
+                           ImageU8* switched) {
+  const int w = disp.width, h = disp.height;
+  ImageI16 cur = disp;
+  if (switched) *switched = ImageU8(w, h, 0);
+  Ctx c{};
+  c.cref = &census_ref, c.cother = &census_other;
+  c.direction = direction, c.r = p.window / 2, c.bits = census_bits;
+  c.margin = static_cast<int>(std::lround(p.margin * p.window * p.window));  // [bits per window]
+  c.jump = p.min_jump * kDispScale, c.step = p.step;
+  int dmax = 0;  // largest rounded disparity in the map (tables are indexed by it)
+  for (const std::int16_t d : disp.data) dmax = std::max(dmax, d == kInvalidDisp ? 0 : round_q4(d));
+  for (int pass = 0; pass < p.passes; ++pass) {
+    ImageI16 next = cur;
+    c.cur = &cur, c.next = &next;
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel
+#endif
+    {
+      SegScratch sc;
+      sc.slot_of.assign(std::size_t(dmax) + 1, -1);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(dynamic, 64)
+#endif
+      for (int s = 0; s < seg.count; ++s) refine_segment(c, seg, s, sc);
+    }
+    cur = std::move(next);
+  }
+  if (switched)
+    for (std::size_t i = 0; i < cur.size(); ++i) switched->data[i] = cur.data[i] != disp.data[i];
+  return cur;
+}
+
+}  // namespace fs
