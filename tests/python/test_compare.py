@@ -242,3 +242,22 @@ def test_firmware_tsukuba_within_tolerance(firmware_bin, datasets_root, tmp_path
     rc = main(["compare", str(run)])
     out = capsys.readouterr()
     assert rc == 0, out.out + out.err
+
+
+@pytest.mark.firmware
+def test_firmware_boundary_refinement_matches_the_reference(firmware_bin, pair_files, tmp_path, capsys):
+    # docs/algorithm.md 4b: the refined WTA maps of the firmware (summed-area tables per segment)
+    # and of the reference (one box-filtered Hamming plane per disparity) must agree
+    left, right, _ = pair_files
+    cfg = tmp_path / "boundary.toml"
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n\n[boundary]\nenabled = true\nwindow = 7\nmin_jump = 1\n")
+    run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
+    rc = main(["compare", str(run), "--report", str(tmp_path / "report.html")])
+    out = capsys.readouterr()
+    assert rc == 0, out.out + out.err
+    c = cmp.compare_run(run)
+    assert c.metric("wta_paint_isolated_pct").value == 100.0  # the reference refines the firmware's table bit for bit
+    assert c.metric("wta_left_within_1px_pct").value >= 99.0
+    d = dm.read_dump(run)  # ... and the stage did change pixels on this pair
+    q4 = d["seg_left"][:, dm.SEG_DISP_Q4]
+    assert np.count_nonzero(np.where(q4 < 0, -1, q4)[d["labels_left"]] != d["disp_left_wta"]) > 20

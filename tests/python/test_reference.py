@@ -499,3 +499,37 @@ def test_block_entropy_bins_are_rounded_disparities():
     E = esr.block_entropy(d, 3, 16)
     p = np.array([1 / 3, 2 / 3])
     assert E[0, 1] == pytest.approx(float(-(p * np.log2(p)).sum()))
+
+
+def test_boundary_refinement_gives_a_straddling_segments_far_side_back():
+    # docs/algorithm.md 4b; the scene of the firmware test Boundary.GivesAStraddlingSegments...
+    from fuzzyctl.reference import boundary
+
+    rng = np.random.default_rng(5)
+    w, h, db, df = 96, 64, 4, 12
+    bg, fg = rng.integers(0, 256, (h, w + 32)), rng.integers(0, 256, (h, w + 32))
+    sx0, sx1, sy0, sy1, strip = 40, 60, 20, 44, 5
+    yy, xx = np.mgrid[0:h, 0:w]
+    in_l = (yy >= sy0) & (yy < sy1) & (xx >= sx0) & (xx < sx1)
+    left = np.where(in_l, fg[:, :w], bg[:, :w]).astype(np.uint8)
+    in_r = (yy >= sy0) & (yy < sy1) & (xx + df >= sx0) & (xx + df < sx1)
+    right = np.where(in_r, fg[:, df : df + w], bg[:, db : db + w]).astype(np.uint8)
+    disp = np.full((h, w), float(db))
+    disp[sy0:sy1, sx0 : sx1 + strip] = df
+    out = boundary.refine(disp, boundary.census(left, 2), boundary.census(right, 2), +1, 7, 1.0, 4, 1, 1, 24)
+    rows = slice(sy0 + 3, sy1 - 3)
+    assert np.all(out[rows, sx1 + 2 : sx1 + strip] == db)
+    assert np.all(out[rows, sx0 + 3 : sx1 - 3] == df)
+    unchanged = boundary.refine(disp, boundary.census(left, 2), boundary.census(right, 2), +1, 7, 1.0, 4, 16, 1, 24)
+    np.testing.assert_array_equal(unchanged, disp)
+
+
+def test_census_bits_and_popcount():
+    from fuzzyctl.reference import boundary
+
+    img = np.array([[5, 1, 9], [2, 5, 7], [5, 3, 4]], dtype=np.uint8)
+    c = boundary.census(img, 1)
+    # centre 5: neighbours row-major (1,1)..: 5,1,9,2,7,5,3,4 -> darker: 1,2,3,4 at bits 1,3,6,7
+    assert c[1, 1] == (1 << 1) | (1 << 3) | (1 << 6) | (1 << 7)
+    v = np.array([0, 1, 0xFFFFFF, 0x800001, 0xFFFFFFFF], dtype=np.uint32)
+    assert boundary._popcount(v).tolist() == [0, 1, 24, 2, 32]

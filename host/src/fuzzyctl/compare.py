@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from . import dump as dumpmod
+from .reference import boundary
 from . import paths
 from .config import Config, default_values, parse_config
 from .errors import FatalError
@@ -152,7 +153,7 @@ for _map, _stage in (("wta_left", "wta"), ("wta_right", "wta"), ("lr", "lrcheck"
 _doc("final_within_1px_valid_pct", "esr", "%", "pixels valid in either final map: both valid and within 1 px (a pixel valid in one map only disagrees)")
 _doc("lr_mask_agreement_pct", "lrcheck", "%", "pixels with the same eq. (13) verdict")
 _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) replaced flag")
-_doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides)")
+_doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides; with [boundary], refined by the reference on the same images)")
 _doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask")
 _doc("esr_replaced_isolated_agreement_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's replaced mask")
 _doc("final_isolated_within_0px_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's ESR map disp_esr (Q4)")
@@ -239,6 +240,17 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
         == d[f"disp_{side}_wta"]
         for side in ("left", "right")
     ]
+    b = cfg.boundary
+    if b.enabled:  # docs/algorithm.md 4b: the painted table, refined by the reference, is the WTA map
+        cen = {"left": boundary.census(r.left, b.census_radius), "right": boundary.census(r.right, b.census_radius)}
+        bits = (2 * b.census_radius + 1) ** 2 - 1
+        painted = []
+        for side, other, direction in (("left", "right", +1), ("right", "left", -1)):
+            q4 = d[f"seg_{side}"][:, dumpmod.SEG_DISP_Q4]
+            table = np.where(q4 < 0, np.nan, q4 / dumpmod.DISP_SCALE)[d[f"labels_{side}"]]
+            refined = boundary.refine(table, cen[side], cen[other], direction, b.window, b.margin, b.step, b.min_jump,
+                                      b.passes, bits)
+            painted.append(dumpmod.disp_to_q4(refined) == d[f"disp_{side}_wta"])
     values["wta_paint_isolated_pct"] = 100.0 * float(np.mean(np.concatenate([p.ravel() for p in painted])))
     fw_wta_l, fw_wta_r, fw_lr = d.disp("disp_left_wta"), d.disp("disp_right_wta"), d.disp("disp_lr")
     _, iso_mask = left_right_check(fw_wta_l, fw_wta_r, cfg.lr_check.max_diff)

@@ -56,15 +56,6 @@ namespace {
 
 inline int round_q4(int d) { return (d + kDispScale / 2) >> kDispShift; }
 
-// Bit count of a 32-bit word in plain shifts and masks (SWAR), so that a loop of them vectorises
-// (x86 has no vector popcount before AVX-512; the scalar POPCNT runs one word at a time).
-inline std::uint32_t popcount_swar(std::uint32_t v) {
-  v = v - ((v >> 1) & 0x55555555u);
-  v = (v & 0x33333333u) + ((v >> 2) & 0x33333333u);
-  v = (v + (v >> 4)) & 0x0F0F0F0Fu;
-  return (v * 0x01010101u) >> 24;
-}
-
 // Per-thread scratch of one segment: its pixels that have candidates, and the summed-area tables
 // of the disparities they need (one per rounded disparity, `slot` maps a disparity to its table).
 struct SegScratch {
@@ -80,7 +71,6 @@ struct SegScratch {
   std::vector<int> ds;                // rounded disparity of each table
   std::vector<std::int16_t> slot_of;  // [rounded disparity] -> table index, -1 = none
   std::vector<std::int32_t> tables;   // ds.size() tables of (H_e + 1) x (W_e + 1)
-  std::vector<std::int32_t> hrow;     // one row of Hamming distances (W_e)
 };
 
 struct Ctx {
@@ -116,7 +106,7 @@ inline int gather(const Ctx& c, int x, int y, std::int16_t d0, std::int16_t* can
 // disparity d of the clamped pixel (the window rule of the reference: window pixels outside the
 // image take the nearest image pixel; partners outside the other image count `bits`).
 FS_TARGET_CLONES_V3
-void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32_t* t, std::int32_t* hrow) {
+void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32_t* t) {
   const int w = c.cref->width, h = c.cref->height;
   const int shift = -c.direction * d;
   const int stride = We + 1;
@@ -128,25 +118,19 @@ void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32
     const int y = std::clamp(Y0 + j, 0, h - 1);
     const std::uint32_t* a = c.cref->row(y);
     const std::uint32_t* b = c.cother->row(y);
-    for (int i = 0; i < ia; ++i) {
+    const std::int32_t* up = t + std::size_t(j) * stride + 1;
+    std::int32_t* out = t + std::size_t(j + 1) * stride + 1;
+    out[-1] = 0;
+    std::int32_t run = 0;  // the row's running sum; out = the rows above + this row up to column i
+    auto clamped = [&](int i) {
       const int x = std::clamp(X0 + i, 0, w - 1), xo = x + shift;
-      hrow[i] = (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
-    }
+      return (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
+    };
+    for (int i = 0; i < ia; ++i) out[i] = up[i] + (run += clamped(i));
     const std::uint32_t* ax = a + X0;
     const std::uint32_t* bx = b + X0 + shift;
-    for (int i = ia; i < ib; ++i) hrow[i] = static_cast<std::int32_t>(popcount_swar(ax[i] ^ bx[i]));
-    for (int i = ib; i < We; ++i) {
-      const int x = std::clamp(X0 + i, 0, w - 1), xo = x + shift;
-      hrow[i] = (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
-    }
-    const std::int32_t* up = t + std::size_t(j) * stride;
-    std::int32_t* out = t + std::size_t(j + 1) * stride;
-    out[0] = 0;
-    std::int32_t run = 0;
-    for (int i = 0; i < We; ++i) {
-      run += hrow[i];
-      out[i + 1] = up[i + 1] + run;
-    }
+    for (int i = ia; i < ib; ++i) out[i] = up[i] + (run += std::popcount(ax[i] ^ bx[i]));
+    for (int i = ib; i < We; ++i) out[i] = up[i] + (run += clamped(i));
   }
 }
 
@@ -185,10 +169,9 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
   const int X0 = x0 - r, Y0 = y0 - r, We = x1 - x0 + 1 + 2 * r, He = y1 - y0 + 1 + 2 * r;
   const int stride = We + 1;
   const std::size_t tsize = std::size_t(He + 1) * stride;
-  sc.hrow.resize(std::size_t(We));
   if (sc.tables.size() < sc.ds.size() * tsize) sc.tables.resize(sc.ds.size() * tsize);
   for (std::size_t k = 0; k < sc.ds.size(); ++k) {
-    build_table(c, X0, Y0, We, He, sc.ds[k], sc.tables.data() + k * tsize, sc.hrow.data());
+    build_table(c, X0, Y0, We, He, sc.ds[k], sc.tables.data() + k * tsize);
     sc.slot_of[sc.ds[k]] = -1;  // reset for the next segment
   }
   const std::int32_t* tables = sc.tables.data();
