@@ -67,6 +67,8 @@ def test_overlay_and_int_accepted_for_float(tmp_path):
         ("[costs]\nalpha = 0.5\n", r"unknown section \[costs\]"),
         ("[cost]\nalpha = \n", r"not valid TOML"),
         ("[lr_check]\nmax_diff = true\n", r"lr_check.max_diff = true is not a number"),
+        ("[boundary]\nwindow = 4\n", r"boundary.window = 4 is not odd; expected an odd integer in \[1, 9\] px"),
+        ("[boundary]\nmargin = -1\n", r"boundary.margin = -1.0 is out of range; expected a number in \[0, 24\] bits per window pixel"),
     ],
 )
 def test_invalid_configs_name_the_field_and_range(tmp_path, text, message):

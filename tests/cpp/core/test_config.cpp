@@ -44,14 +44,25 @@ TEST(Config, ErrorsNameTheFieldAndRange) {
   EXPECT_NE(e.find("unknown field 'cost.max_disparty'"), std::string::npos) << e;
   e = error_of("[segmentation]\nregion_size = 8.5\n");
   EXPECT_NE(e.find("integer"), std::string::npos) << e;
+  e = error_of("[boundary]\nwindow = 4\n");
+  EXPECT_NE(e.find("boundary.window"), std::string::npos) << e;
+  EXPECT_NE(e.find("odd"), std::string::npos) << e;
+  e = error_of("[boundary]\ncensus_radius = 3\n");
+  EXPECT_NE(e.find("boundary.census_radius"), std::string::npos) << e;
+  EXPECT_NE(e.find("[1, 2]"), std::string::npos) << e;
   e = error_of("[cost\n");
   EXPECT_NE(e.find("test.toml:1"), std::string::npos) << e;
   EXPECT_THROW(load_matcher_config("/nonexistent/cfg.toml"), ConfigError);
 }
 
 TEST(Config, RoundTripThroughToml) {
-  MatcherParams p = parse_matcher_config("[cost]\nalpha = 0.3\nnmi_candidates = 0\n[esr]\ntau = 1.25\n", "t");
+  MatcherParams p = parse_matcher_config(
+      "[cost]\nalpha = 0.3\nnmi_candidates = 0\n[esr]\ntau = 1.25\n[boundary]\nenabled = true\nmargin = 1.5\nwindow = 5\n", "t");
   const MatcherParams q = parse_matcher_config(config_to_toml(p), "roundtrip");
+  EXPECT_TRUE(q.boundary.enabled);
+  EXPECT_DOUBLE_EQ(q.boundary.margin, 1.5);
+  EXPECT_EQ(q.boundary.window, 5);
+  EXPECT_EQ(q.boundary.step, 4);
   EXPECT_DOUBLE_EQ(q.cost.alpha, 0.3);
   EXPECT_EQ(q.cost.nmi_candidates, 0);
   EXPECT_DOUBLE_EQ(q.esr.tau, 1.25);

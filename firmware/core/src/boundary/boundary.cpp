@@ -63,9 +63,9 @@ struct SegScratch {
     std::int32_t x, y;
     std::int16_t d0;
     std::int8_t nc;
-    std::uint8_t own_slot;
+    std::uint16_t own_slot;
     std::int16_t cand[8];
-    std::uint8_t slot[8];
+    std::uint16_t slot[8];  // up to D + 1 = 257 disparities, more than a byte
   };
   std::vector<Px> px;
   std::vector<int> ds;                // rounded disparity of each table
@@ -141,7 +141,7 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
   auto slot = [&](int d) {
     std::int16_t& k = sc.slot_of[d];
     if (k < 0) k = static_cast<std::int16_t>(sc.ds.size()), sc.ds.push_back(d);
-    return static_cast<std::uint8_t>(k);
+    return static_cast<std::uint16_t>(k);
   };
   sc.px.clear();
   sc.ds.clear();
@@ -180,7 +180,7 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
     const int i0 = p.x - r - X0, j0 = p.y - r - Y0;
     const std::size_t a = std::size_t(j0) * stride + i0, b = a + 2 * r + 1;
     const std::size_t cc = a + std::size_t(2 * r + 1) * stride, dd = cc + 2 * r + 1;
-    auto window = [&](std::uint8_t k) {
+    auto window = [&](std::uint16_t k) {
       const std::int32_t* t = tables + k * tsize;
       return t[dd] - t[b] - t[cc] + t[a];
     };
