@@ -185,22 +185,31 @@ def _firmware_dump(firmware_bin, left, right, out, *extra):
     return out
 
 
-@pytest.mark.firmware
-def test_firmware_dump_within_tolerance(firmware_bin, pair_files, tmp_path, capsys):
-    left, right, cfg = pair_files
-    run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
+def _firmware_pair_dump(firmware_bin, pair_files, tmp_path, extra_toml):
+    """Firmware dump of the small pair with its config plus ``extra_toml`` sections."""
+    left, right, _ = pair_files
+    cfg = tmp_path / "extra.toml"
+    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n\n" + extra_toml)
+    return _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
+
+
+def _assert_compare_passes(run, tmp_path, capsys):
     rc = main(["compare", str(run), "--report", str(tmp_path / "report.html")])
     out = capsys.readouterr()
     assert rc == 0, out.out + out.err
 
 
 @pytest.mark.firmware
+def test_firmware_dump_within_tolerance(firmware_bin, pair_files, tmp_path, capsys):
+    left, right, cfg = pair_files
+    run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
+    _assert_compare_passes(run, tmp_path, capsys)
+
+
+@pytest.mark.firmware
 def test_fault_injection_is_caught(firmware_bin, pair_files, tmp_path, capsys):
     # testing.inject_shift = 1 makes the firmware's cost stage look one pixel off
-    left, right, _ = pair_files
-    cfg = tmp_path / "inject.toml"
-    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n\n[testing]\ninject_shift = 1\n")
-    run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
+    run = _firmware_pair_dump(firmware_bin, pair_files, tmp_path, "[testing]\ninject_shift = 1\n")
     assert main(["compare", str(run)]) == 1
     out = capsys.readouterr()
     assert "testing.inject_shift = 1" in out.out
@@ -248,13 +257,8 @@ def test_firmware_tsukuba_within_tolerance(firmware_bin, datasets_root, tmp_path
 def test_firmware_boundary_refinement_matches_the_reference(firmware_bin, pair_files, tmp_path, capsys):
     # docs/algorithm.md 4b: the refined WTA maps of the firmware (summed-area tables per segment)
     # and of the reference (one box-filtered Hamming plane per disparity) must agree
-    left, right, _ = pair_files
-    cfg = tmp_path / "boundary.toml"
-    cfg.write_text("[cost]\nmax_disparity = 10\nsubpixel = false\n\n[boundary]\nenabled = true\nwindow = 7\nmin_jump = 1\n")
-    run = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", "--config", str(cfg))
-    rc = main(["compare", str(run), "--report", str(tmp_path / "report.html")])
-    out = capsys.readouterr()
-    assert rc == 0, out.out + out.err
+    run = _firmware_pair_dump(firmware_bin, pair_files, tmp_path, "[boundary]\nenabled = true\nwindow = 7\nmin_jump = 1\n")
+    _assert_compare_passes(run, tmp_path, capsys)
     c = cmp.compare_run(run)
     assert c.metric("wta_paint_isolated_pct").value == 100.0  # the reference refines the firmware's table bit for bit
     assert c.metric("wta_left_within_1px_pct").value >= 99.0
