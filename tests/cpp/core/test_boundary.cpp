@@ -5,6 +5,7 @@
 #include <bit>
 #include <cstdlib>
 #include <random>
+#include <stdexcept>
 
 #include <gtest/gtest.h>
 
@@ -99,6 +100,12 @@ TEST(Boundary, CensusMatchesScalarReference) {
     const ImageU32 got = census_transform(img, r);
     EXPECT_EQ(got.data, census_reference(img, r).data) << w << "x" << h << " r " << r;
   }
+}
+
+TEST(Boundary, CensusRejectsARadiusItsCodeCannotHold) {
+  const ImageU8 img = test::texture_image(9, 9, 3);
+  EXPECT_THROW(census_transform(img, 3), std::invalid_argument);
+  EXPECT_THROW(census_transform(img, 0), std::invalid_argument);
 }
 
 TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {

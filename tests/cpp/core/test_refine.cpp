@@ -132,10 +132,18 @@ TEST(Wta, CandidateRecordsDecideAsTheDenseScan) {
       (pair ? moved_pair : moved_other) += moved;
       other += interior && !pair;
     }
-    if (subpixel && 2 * K > D) EXPECT_GT(moved_pair, 0);  // dense enough for adjacent triples
-    if (subpixel && every && other > 5) EXPECT_GT(moved_other, 0);  // the winner's-NMI fallback ran
-    if (!subpixel || !every) EXPECT_EQ(moved_other, 0);
-    if (!subpixel) EXPECT_EQ(moved_pair, 0);
+    if (subpixel && 2 * K > D) {  // dense enough for adjacent triples
+      EXPECT_GT(moved_pair, 0);
+    }
+    if (subpixel && every && other > 5) {  // the winner's-NMI fallback ran
+      EXPECT_GT(moved_other, 0);
+    }
+    if (!subpixel || !every) {
+      EXPECT_EQ(moved_other, 0);
+    }
+    if (!subpixel) {
+      EXPECT_EQ(moved_pair, 0);
+    }
   }
 }
 

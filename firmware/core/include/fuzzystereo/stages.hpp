@@ -138,7 +138,7 @@ inline int partner_x(int x, std::int16_t d_q4) { return x - ((d_q4 + kDispScale 
 // ---- boundary/ ------------------------------------------------------------------------------
 // Census transform (not in the paper): bit i set where the i-th neighbour of the
 // (2 radius + 1)^2 window (row-major, centre skipped) is darker than the centre; border replicated.
-// radius <= 2 (24 bits).
+// radius 1 or 2 (8 or 24 bits; others throw std::invalid_argument).
 ImageU32 census_transform(const ImageU8& img, int radius);
 // Segment-boundary refinement of a WTA map (not in the paper; docs/algorithm.md 4b), computed
 // segment by segment (`seg` is the segmentation the map was painted from; every pixel belongs to

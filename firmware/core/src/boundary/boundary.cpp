@@ -7,6 +7,8 @@
 #include <bit>
 #include <cmath>
 #include <cstdlib>
+#include <stdexcept>
+#include <string>
 
 #include "fuzzystereo/stages.hpp"
 #include "internal.hpp"
@@ -38,6 +40,8 @@ void census_row(const std::uint8_t* const* rows, int w, int radius, std::uint32_
 }  // namespace
 
 ImageU32 census_transform(const ImageU8& img, int radius) {
+  if (radius < 1 || radius > 2)  // (2r + 1)^2 - 1 bits must fit the 32-bit code (and rows[] below)
+    throw std::invalid_argument("census_transform: radius must be 1 or 2, got " + std::to_string(radius));
   const int w = img.width, h = img.height;
   ImageU32 out(w, h, 0);
   if (w == 0 || h == 0) return out;
