@@ -74,7 +74,7 @@ struct SegScratch {
   std::vector<Px> px;
   std::vector<int> ds;                // rounded disparity of each table
   std::vector<std::int16_t> slot_of;  // [rounded disparity] -> table index, -1 = none
-  std::vector<std::int32_t> tables;   // ds.size() tables of (H_e + 1) x (W_e + 1)
+  std::vector<std::uint32_t> tables;  // ds.size() tables of (H_e + 1) x (W_e + 1), modulo 2^32
 };
 
 struct Ctx {
@@ -107,10 +107,11 @@ inline int gather(const Ctx& c, int x, int y, std::int16_t d0, std::int16_t* can
 }
 
 // Summed-area table over the expanded box [X0, X0 + We) x [Y0, Y0 + He) of the Hamming distance at
-// disparity d of the clamped pixel (the window rule of the reference: window pixels outside the
+// disparity d of the clamped pixel. uint32 modulo 2^32: a window sum is a difference of four
+// entries, exact while the true sum (<= window^2 * 24) is below 2^32, however large the box (the window rule of the reference: window pixels outside the
 // image take the nearest image pixel; partners outside the other image count `bits`).
 FS_TARGET_CLONES_V3
-void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32_t* t) {
+void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::uint32_t* t) {
   const int w = c.cref->width, h = c.cref->height;
   const int shift = -c.direction * d;
   const int stride = We + 1;
@@ -122,18 +123,18 @@ void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::int32
     const int y = std::clamp(Y0 + j, 0, h - 1);
     const std::uint32_t* a = c.cref->row(y);
     const std::uint32_t* b = c.cother->row(y);
-    const std::int32_t* up = t + std::size_t(j) * stride + 1;
-    std::int32_t* out = t + std::size_t(j + 1) * stride + 1;
+    const std::uint32_t* up = t + std::size_t(j) * stride + 1;
+    std::uint32_t* out = t + std::size_t(j + 1) * stride + 1;
     out[-1] = 0;
-    std::int32_t run = 0;  // the row's running sum; out = the rows above + this row up to column i
-    auto clamped = [&](int i) {
+    std::uint32_t run = 0;  // the row's running sum; out = the rows above + this row up to column i
+    auto clamped = [&](int i) -> std::uint32_t {
       const int x = std::clamp(X0 + i, 0, w - 1), xo = x + shift;
-      return (xo < 0 || xo >= w) ? c.bits : std::popcount(a[x] ^ b[xo]);
+      return (xo < 0 || xo >= w) ? std::uint32_t(c.bits) : std::uint32_t(std::popcount(a[x] ^ b[xo]));
     };
     for (int i = 0; i < ia; ++i) out[i] = up[i] + (run += clamped(i));
     const std::uint32_t* ax = a + X0;
     const std::uint32_t* bx = b + X0 + shift;
-    for (int i = ia; i < ib; ++i) out[i] = up[i] + (run += std::popcount(ax[i] ^ bx[i]));
+    for (int i = ia; i < ib; ++i) out[i] = up[i] + (run += std::uint32_t(std::popcount(ax[i] ^ bx[i])));
     for (int i = ib; i < We; ++i) out[i] = up[i] + (run += clamped(i));
   }
 }
@@ -178,15 +179,15 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
     build_table(c, X0, Y0, We, He, sc.ds[k], sc.tables.data() + k * tsize);
     sc.slot_of[sc.ds[k]] = -1;  // reset for the next segment
   }
-  const std::int32_t* tables = sc.tables.data();
+  const std::uint32_t* tables = sc.tables.data();
   for (const SegScratch::Px& p : sc.px) {
     // Window sum centred on (x, y): four reads of a table at the same offsets.
     const int i0 = p.x - r - X0, j0 = p.y - r - Y0;
     const std::size_t a = std::size_t(j0) * stride + i0, b = a + 2 * r + 1;
     const std::size_t cc = a + std::size_t(2 * r + 1) * stride, dd = cc + 2 * r + 1;
     auto window = [&](std::uint16_t k) {
-      const std::int32_t* t = tables + k * tsize;
-      return t[dd] - t[b] - t[cc] + t[a];
+      const std::uint32_t* t = tables + k * tsize;
+      return static_cast<int>(t[dd] - t[b] - t[cc] + t[a]);  // exact: the true sum < 2^32
     };
     int best = window(p.own_slot) - c.margin;  // a candidate must beat this
     std::int16_t best_d = p.d0;
