@@ -107,9 +107,10 @@ inline int gather(const Ctx& c, int x, int y, std::int16_t d0, std::int16_t* can
 }
 
 // Summed-area table over the expanded box [X0, X0 + We) x [Y0, Y0 + He) of the Hamming distance at
-// disparity d of the clamped pixel. uint32 modulo 2^32: a window sum is a difference of four
-// entries, exact while the true sum (<= window^2 * 24) is below 2^32, however large the box (the window rule of the reference: window pixels outside the
-// image take the nearest image pixel; partners outside the other image count `bits`).
+// disparity d of the clamped pixel (the window rule of the reference: window pixels outside the
+// image take the nearest image pixel; partners outside the other image count `bits`). uint32
+// modulo 2^32: a window sum is a difference of four entries, exact while the true sum
+// (<= window^2 * 24) is below 2^32, however large the box.
 FS_TARGET_CLONES_V3
 void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::uint32_t* t) {
   const int w = c.cref->width, h = c.cref->height;
