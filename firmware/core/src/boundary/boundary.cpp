@@ -60,18 +60,9 @@ namespace {
 
 inline int round_q4(int d) { return (d + kDispScale / 2) >> kDispShift; }
 
-// Per-thread scratch of one segment: its pixels that have candidates, and the summed-area tables
-// of the disparities they need (one per rounded disparity, `slot` maps a disparity to its table).
+// Per-thread scratch of one segment: the summed-area tables of the disparities its pixels need
+// (one per rounded disparity, `slot_of` maps a disparity to its table), built on first use.
 struct SegScratch {
-  struct Px {
-    std::int32_t x, y;
-    std::int16_t d0;
-    std::int8_t nc;
-    std::uint16_t own_slot;
-    std::int16_t cand[8];
-    std::uint16_t slot[8];  // up to D + 1 = 257 disparities, more than a byte
-  };
-  std::vector<Px> px;
   std::vector<int> ds;                // rounded disparity of each table
   std::vector<std::int16_t> slot_of;  // [rounded disparity] -> table index, -1 = none
   std::vector<std::uint32_t> tables;  // ds.size() tables of (H_e + 1) x (W_e + 1), modulo 2^32
@@ -144,62 +135,57 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
   const ImageI16& cur = *c.cur;
   const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
   if (rb == re) return;
-  auto slot = [&](int d) {
-    std::int16_t& k = sc.slot_of[d];
-    if (k < 0) k = static_cast<std::int16_t>(sc.ds.size()), sc.ds.push_back(d);
-    return static_cast<std::uint16_t>(k);
-  };
-  sc.px.clear();
-  sc.ds.clear();
   int x0 = seg.runs[rb].x0, x1 = seg.runs[rb].x1 - 1;
   const int y0 = seg.runs[rb].y, y1 = seg.runs[re - 1].y;
   for (std::int32_t ri = rb; ri < re; ++ri) {
+    x0 = std::min(x0, int(seg.runs[ri].x0));
+    x1 = std::max(x1, int(seg.runs[ri].x1) - 1);
+  }
+  const int r = c.r, n = 2 * r + 1;
+  const int X0 = x0 - r, Y0 = y0 - r, We = x1 - x0 + 1 + 2 * r, He = y1 - y0 + 1 + 2 * r;
+  const std::size_t stride = std::size_t(We) + 1;
+  const std::size_t tsize = std::size_t(He + 1) * stride;
+  sc.ds.clear();
+  // The table of rounded disparity d, built the first time a pixel of the segment needs it.
+  auto table = [&](int d) -> std::size_t {
+    std::int16_t& k = sc.slot_of[d];
+    if (k < 0) {
+      k = static_cast<std::int16_t>(sc.ds.size());
+      sc.ds.push_back(d);
+      if (sc.tables.size() < sc.ds.size() * tsize) sc.tables.resize(sc.ds.size() * tsize);
+      build_table(c, X0, Y0, We, He, d, sc.tables.data() + std::size_t(k) * tsize);
+    }
+    return std::size_t(k) * tsize;
+  };
+  for (std::int32_t ri = rb; ri < re; ++ri) {
     const Run& run = seg.runs[ri];
-    x0 = std::min(x0, int(run.x0));
-    x1 = std::max(x1, int(run.x1) - 1);
     const std::int16_t* row = cur.row(run.y);
+    std::int16_t* out = c.next->row(run.y);
     for (int x = run.x0; x < run.x1; ++x) {
       const std::int16_t d0 = row[x];
       if (d0 == kInvalidDisp) continue;
-      SegScratch::Px p;
-      p.nc = static_cast<std::int8_t>(gather(c, x, run.y, d0, p.cand));
-      if (p.nc == 0) continue;
-      p.x = x, p.y = run.y, p.d0 = d0;
-      p.own_slot = slot(round_q4(d0));
-      for (int j = 0; j < p.nc; ++j) p.slot[j] = slot(round_q4(p.cand[j]));
-      sc.px.push_back(p);
+      std::int16_t cand[8];
+      const int nc = gather(c, x, run.y, d0, cand);
+      if (nc == 0) continue;
+      // Window sum centred on (x, y): four reads of a table at the same offsets.
+      const std::size_t a = std::size_t(run.y - r - Y0) * stride + std::size_t(x - r - X0), b = a + n;
+      const std::size_t cc = a + std::size_t(n) * stride, dd = cc + n;
+      auto window = [&](std::size_t off) {
+        const std::uint32_t* t = sc.tables.data() + off;
+        return static_cast<int>(t[dd] - t[b] - t[cc] + t[a]);  // exact: the true sum < 2^32
+      };
+      int best = window(table(round_q4(d0))) - c.margin;  // a candidate must beat this
+      std::int16_t best_d = d0;
+      for (int j = 0; j < nc; ++j) {
+        const int cost = window(table(round_q4(cand[j])));
+        const bool better = cost < best;  // ties keep the earlier candidate
+        best = better ? cost : best;
+        best_d = better ? cand[j] : best_d;
+      }
+      out[x] = best_d;
     }
   }
-  if (sc.px.empty()) return;
-  const int r = c.r;
-  const int X0 = x0 - r, Y0 = y0 - r, We = x1 - x0 + 1 + 2 * r, He = y1 - y0 + 1 + 2 * r;
-  const int stride = We + 1;
-  const std::size_t tsize = std::size_t(He + 1) * stride;
-  if (sc.tables.size() < sc.ds.size() * tsize) sc.tables.resize(sc.ds.size() * tsize);
-  for (std::size_t k = 0; k < sc.ds.size(); ++k) {
-    build_table(c, X0, Y0, We, He, sc.ds[k], sc.tables.data() + k * tsize);
-    sc.slot_of[sc.ds[k]] = -1;  // reset for the next segment
-  }
-  const std::uint32_t* tables = sc.tables.data();
-  for (const SegScratch::Px& p : sc.px) {
-    // Window sum centred on (x, y): four reads of a table at the same offsets.
-    const int i0 = p.x - r - X0, j0 = p.y - r - Y0;
-    const std::size_t a = std::size_t(j0) * stride + i0, b = a + 2 * r + 1;
-    const std::size_t cc = a + std::size_t(2 * r + 1) * stride, dd = cc + 2 * r + 1;
-    auto window = [&](std::uint16_t k) {
-      const std::uint32_t* t = tables + k * tsize;
-      return static_cast<int>(t[dd] - t[b] - t[cc] + t[a]);  // exact: the true sum < 2^32
-    };
-    int best = window(p.own_slot) - c.margin;  // a candidate must beat this
-    std::int16_t best_d = p.d0;
-    for (int j = 0; j < p.nc; ++j) {
-      const int cost = window(p.slot[j]);
-      const bool better = cost < best;  // ties keep the earlier candidate
-      best = better ? cost : best;
-      best_d = better ? p.cand[j] : best_d;
-    }
-    c.next->at(p.x, p.y) = best_d;
-  }
+  for (const int d : sc.ds) sc.slot_of[d] = -1;  // reset for the next segment
 }
 
 }  // namespace
