@@ -81,18 +81,20 @@ struct Ctx {
 // >= jump (Q4). The reference also drops a value whose rounded disparity an earlier candidate has;
 // here such repeats stay (a repeat has the same cost as the earlier one, and only a strictly lower
 // cost replaces the best, so the result is the same — and cheaper than the test).
-inline int gather(const Ctx& c, int x, int y, std::int16_t d0, std::int16_t* cand) {
-  const ImageI16& m = *c.cur;
-  const int w = m.width, h = m.height, k = c.step;
-  const std::int16_t* row = m.row(y);
-  const std::int16_t vals[8] = {row[std::max(x - k, 0)],     row[std::min(x + k, w - 1)],
-                                m.at(x, std::max(y - k, 0)), m.at(x, std::min(y + k, h - 1)),
-                                row[std::max(x - 2 * k, 0)], row[std::min(x + 2 * k, w - 1)],
-                                m.at(x, std::max(y - 2 * k, 0)), m.at(x, std::min(y + 2 * k, h - 1))};
+inline int gather(const std::int16_t* const* rows, int w, int k, int jump, int x, std::int16_t d0, std::int16_t* cand) {
+  const std::int16_t* row = rows[2];
+  std::int16_t vals[8];
+  if (x >= 2 * k && x + 2 * k < w) {  // interior: no clamping
+    vals[0] = row[x - k], vals[1] = row[x + k], vals[4] = row[x - 2 * k], vals[5] = row[x + 2 * k];
+  } else {
+    vals[0] = row[std::max(x - k, 0)], vals[1] = row[std::min(x + k, w - 1)];
+    vals[4] = row[std::max(x - 2 * k, 0)], vals[5] = row[std::min(x + 2 * k, w - 1)];
+  }
+  vals[2] = rows[1][x], vals[3] = rows[3][x], vals[6] = rows[0][x], vals[7] = rows[4][x];
   int nc = 0;
   for (const std::int16_t v : vals) {  // branch-free: the outcomes are data-dependent
     cand[nc] = v;
-    nc += (v != kInvalidDisp) & (std::abs(v - d0) >= c.jump);
+    nc += (v != kInvalidDisp) & (std::abs(v - d0) >= jump);
   }
   return nc;
 }
@@ -161,11 +163,14 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
     const Run& run = seg.runs[ri];
     const std::int16_t* row = cur.row(run.y);
     std::int16_t* out = c.next->row(run.y);
+    const int h = cur.height, k = c.step;  // rows y - 2k, y - k, y, y + k, y + 2k (clamped)
+    const std::int16_t* rows[5] = {cur.row(std::max(run.y - 2 * k, 0)), cur.row(std::max(run.y - k, 0)), row,
+                                   cur.row(std::min(run.y + k, h - 1)), cur.row(std::min(run.y + 2 * k, h - 1))};
     for (int x = run.x0; x < run.x1; ++x) {
       const std::int16_t d0 = row[x];
       if (d0 == kInvalidDisp) continue;
       std::int16_t cand[8];
-      const int nc = gather(c, x, run.y, d0, cand);
+      const int nc = gather(rows, cur.width, k, c.jump, x, d0, cand);
       if (nc == 0) continue;
       // Window sum centred on (x, y): four reads of a table at the same offsets.
       const std::size_t a = std::size_t(run.y - r - Y0) * stride + std::size_t(x - r - X0), b = a + n;
