@@ -150,10 +150,9 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
     const int rad = p.boundary.census_radius;
     detail::run_pair(threads, [&] { census_l = census_transform(left, rad); },
                      [&] { census_r = census_transform(right, rad); });
-    const int bits = (2 * rad + 1) * (2 * rad + 1) - 1;
     detail::run_pair(
-        threads, [&] { r.disp_left_wta = refine_boundaries(r.disp_left_wta, r.seg_left, census_l, census_r, +1, p.boundary, bits, nullptr); },
-        [&] { r.disp_right_wta = refine_boundaries(r.disp_right_wta, r.seg_right, census_r, census_l, -1, p.boundary, bits, nullptr); });
+        threads, [&] { r.disp_left_wta = refine_boundaries(r.disp_left_wta, r.seg_left, census_l, census_r, +1, p.boundary, nullptr); },
+        [&] { r.disp_right_wta = refine_boundaries(r.disp_right_wta, r.seg_right, census_r, census_l, -1, p.boundary, nullptr); });
   }
   clock.lap(Stage::Wta);
 

@@ -133,7 +133,7 @@ TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {
     const int bits = (2 * c.radius + 1) * (2 * c.radius + 1) - 1;
     const ImageU32 cl = census_transform(left, c.radius), cr = census_transform(right, c.radius);
     ImageU8 switched;
-    const ImageI16 got = refine_boundaries(disp, seg, cl, cr, c.direction, p, bits, &switched);
+    const ImageI16 got = refine_boundaries(disp, seg, cl, cr, c.direction, p, &switched);
     const ImageI16 want = refine_reference(disp, cl, cr, c.direction, p, bits);
     EXPECT_EQ(got.data, want.data) << c.w << "x" << c.h << " window " << c.window << " direction " << c.direction;
     for (std::size_t i = 0; i < got.size(); ++i) {
@@ -168,7 +168,7 @@ TEST(Boundary, GivesAStraddlingSegmentsFarSidePixelsBackToTheBackground) {
   BoundaryParams p;
   p.enabled = true, p.window = 7, p.margin = 1.0, p.step = 4, p.min_jump = 1;
   const ImageU32 cl = census_transform(left, 2), cr = census_transform(right, 2);
-  const ImageI16 out = refine_boundaries(disp, seg, cl, cr, +1, p, 24, nullptr);
+  const ImageI16 out = refine_boundaries(disp, seg, cl, cr, +1, p, nullptr);
   // The strip's columns beyond the first two (whose windows still hold mostly square pixels) go
   // back to the background; the square's own pixels stay.
   int col_back[strip] = {}, rows = 0, square_kept = 0, square_n = 0;
@@ -181,7 +181,7 @@ TEST(Boundary, GivesAStraddlingSegmentsFarSidePixelsBackToTheBackground) {
   EXPECT_EQ(square_kept, square_n);
   // Without the stage's trigger (every candidate too close), nothing changes.
   p.min_jump = 16;
-  EXPECT_EQ(refine_boundaries(disp, seg, cl, cr, +1, p, 24, nullptr).data, disp.data);
+  EXPECT_EQ(refine_boundaries(disp, seg, cl, cr, +1, p, nullptr).data, disp.data);
 }
 
 }  // namespace

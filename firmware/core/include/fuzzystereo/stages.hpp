@@ -146,13 +146,13 @@ ImageU32 census_transform(const ImageU8& img, int radius);
 // valid pixel, the map's values at +-step and +-2 step along its row and column that differ from
 // its own by >= min_jump px are candidates; the windowed census cost (sum over the window of the
 // Hamming distance between the pixel's census code and its partner's at the rounded disparity,
-// partner column x - direction * d, `census_bits` where the partner is outside the image) of the
+// partner column x - direction * d, all (2 census_radius + 1)^2 - 1 bits where the partner is outside the
+// image; the census codes are census_transform(., p.census_radius)) of the
 // best candidate replaces the pixel's disparity when it is lower than the own disparity's by more
 // than margin * window^2 (ties keep the earlier candidate). `passes` rounds, each reading the
 // previous round's map. switched (optional): 1 where the final map differs from the input.
 ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const ImageU32& census_ref,
-                           const ImageU32& census_other, int direction, const BoundaryParams& p, int census_bits,
-                           ImageU8* switched);
+                           const ImageU32& census_other, int direction, const BoundaryParams& p, ImageU8* switched);
 
 // ---- lrcheck/ -------------------------------------------------------------------------------
 // eq. (13): keeps d_l(x,y) where |d_l(x,y) - d_r(x - d_l(x,y), y)| <= max_diff, else kInvalidDisp.

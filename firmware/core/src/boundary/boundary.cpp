@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/stages.hpp"
 #include "internal.hpp"
 
@@ -58,7 +59,7 @@ ImageU32 census_transform(const ImageU8& img, int radius) {
 
 namespace {
 
-inline int round_q4(int d) { return (d + kDispScale / 2) >> kDispShift; }
+using detect::disp_bin;  // round(d) of a Q4 disparity (the v-disparity's bins)
 
 // Per-thread scratch of one segment: the summed-area tables of the disparities its pixels need
 // (one per rounded disparity, `slot_of` maps a disparity to its table), built on first use.
@@ -179,10 +180,10 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
         const std::uint32_t* t = sc.tables.data() + off;
         return static_cast<int>(t[dd] - t[b] - t[cc] + t[a]);  // exact: the true sum < 2^32
       };
-      int best = window(table(round_q4(d0))) - c.margin;  // a candidate must beat this
+      int best = window(table(disp_bin(d0))) - c.margin;  // a candidate must beat this
       std::int16_t best_d = d0;
       for (int j = 0; j < nc; ++j) {
-        const int cost = window(table(round_q4(cand[j])));
+        const int cost = window(table(disp_bin(cand[j])));
         const bool better = cost < best;  // ties keep the earlier candidate
         best = better ? cost : best;
         best_d = better ? cand[j] : best_d;
@@ -196,37 +197,37 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
 }  // namespace
 
 ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const ImageU32& census_ref,
-                           const ImageU32& census_other, int direction, const BoundaryParams& p, int census_bits,
-                           ImageU8* switched) {
+                           const ImageU32& census_other, int direction, const BoundaryParams& p, ImageU8* switched) {
   const int w = disp.width, h = disp.height;
-  ImageI16 cur = disp;
   if (switched) *switched = ImageU8(w, h, 0);
   Ctx c{};
   c.cref = &census_ref, c.cother = &census_other;
-  c.direction = direction, c.r = p.window / 2, c.bits = census_bits;
+  const int side = 2 * p.census_radius + 1;
+  c.direction = direction, c.r = p.window / 2, c.bits = side * side - 1;  // a census code's bit count
   c.margin = static_cast<int>(std::lround(p.margin * p.window * p.window));  // [bits per window]
   c.jump = p.min_jump * kDispScale, c.step = p.step;
-  int dmax = 0;  // largest rounded disparity in the map (tables are indexed by it)
-  for (const std::int16_t d : disp.data) dmax = std::max(dmax, d == kInvalidDisp ? 0 : round_q4(d));
+  // Tables are indexed by rounded disparity; every candidate is a value of the input map.
+  const int bins = detect::disparity_bins(disp);
+  ImageI16 out = disp;  // each pass reads the previous one's map and writes a copy of it
   for (int pass = 0; pass < p.passes; ++pass) {
-    ImageI16 next = cur;
-    c.cur = &cur, c.next = &next;
+    ImageI16 prev;
+    if (pass > 0) prev = out;
+    c.cur = pass > 0 ? &prev : &disp, c.next = &out;
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel
 #endif
     {
       SegScratch sc;
-      sc.slot_of.assign(std::size_t(dmax) + 1, -1);
+      sc.slot_of.assign(std::size_t(bins), -1);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(dynamic, 64)
 #endif
       for (int s = 0; s < seg.count; ++s) refine_segment(c, seg, s, sc);
     }
-    cur = std::move(next);
   }
   if (switched)
-    for (std::size_t i = 0; i < cur.size(); ++i) switched->data[i] = cur.data[i] != disp.data[i];
-  return cur;
+    for (std::size_t i = 0; i < out.size(); ++i) switched->data[i] = out.data[i] != disp.data[i];
+  return out;
 }
 
 }  // namespace fs

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .esr import box_sum
 from .lrcheck import round_half_up
 
 
@@ -45,13 +46,9 @@ def _popcount(v: np.ndarray) -> np.ndarray:
 
 
 def _window_sums(plane: np.ndarray, r: int) -> np.ndarray:
-    """Sum over the (2r+1)^2 window with replicated borders (exact integers)."""
-    p = np.pad(plane.astype(np.int64), r, mode="edge")
-    s = np.cumsum(np.cumsum(p, axis=0), axis=1)
-    s = np.pad(s, ((1, 0), (1, 0)))
-    n = 2 * r + 1
-    h, w = plane.shape
-    return s[n : n + h, n : n + w] - s[0:h, n : n + w] - s[n : n + h, 0:w] + s[0:h, 0:w]
+    """Sum over the (2r+1)^2 window with replicated borders (exact integers): the ESR box sum of the
+    edge-padded plane, whose windows are then never clipped."""
+    return box_sum(np.pad(plane, r, mode="edge"), 2 * r + 1)[r : r + plane.shape[0], r : r + plane.shape[1]].astype(np.int64)
 
 
 def refine(disp: np.ndarray, census_ref: np.ndarray, census_other: np.ndarray, direction: int, window: int,
