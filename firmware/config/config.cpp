@@ -154,6 +154,7 @@ MatcherParams to_params(const Values& v) {
   p.seg.region_size = i("segmentation.region_size");
   p.seg.compactness = i("segmentation.compactness");
   p.seg.iterations = i("segmentation.iterations");
+  p.seg.coarse_iterations = i("segmentation.coarse_iterations");
   p.seg.min_segment_pct = i("segmentation.min_segment_pct");
   p.cost.max_disparity = i("cost.max_disparity");
   p.cost.alpha = v.num("cost.alpha");
@@ -278,7 +279,8 @@ std::string config_to_toml(const ConfigValues& v) {
 std::string config_to_toml(const MatcherParams& p) {
   std::ostringstream s;
   s << "[segmentation]\nregion_size = " << p.seg.region_size << "\ncompactness = " << p.seg.compactness
-    << "\niterations = " << p.seg.iterations << "\nmin_segment_pct = " << p.seg.min_segment_pct << "\n\n"
+    << "\niterations = " << p.seg.iterations << "\ncoarse_iterations = " << p.seg.coarse_iterations
+    << "\nmin_segment_pct = " << p.seg.min_segment_pct << "\n\n"
     << "[cost]\nmax_disparity = " << p.cost.max_disparity << "\nalpha = " << fmt_num(p.cost.alpha)
     << (p.cost.alpha == std::floor(p.cost.alpha) ? ".0" : "") << "\nnmi_bins = " << p.cost.nmi_bins
     << "\nnmi_candidates = " << p.cost.nmi_candidates << "\nsubpixel = " << (p.cost.subpixel ? "true" : "false")

@@ -15,38 +15,15 @@ struct RefCenter {
   std::int64_t x, y, i;
 };
 
-inline Segmentation slic_segment_reference(const ImageU8& img, const SegmentationParams& p) {
-  const int w = img.width, h = img.height, S = p.region_size;
-  const std::int64_t m2 = std::int64_t(p.compactness) * p.compactness, S2 = std::int64_t(S) * S;
-
-  // Grid centres, moved to the lowest-gradient pixel of the 3x3 neighbourhood.
-  auto grad = [&](int x, int y) {
-    x = std::clamp(x, 1, w - 2);
-    y = std::clamp(y, 1, h - 2);
-    const int gx = img.at(x + 1, y) - img.at(x - 1, y), gy = img.at(x, y + 1) - img.at(x, y - 1);
-    return gx * gx + gy * gy;
-  };
-  std::vector<RefCenter> centers;
-  for (int cy = S / 2; cy < h; cy += S) {
-    for (int cx = S / 2; cx < w; cx += S) {
-      int bx = cx, by = cy, bg = std::numeric_limits<int>::max();
-      if (w >= 3 && h >= 3) {
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int x = std::clamp(cx + dx, 0, w - 1), y = std::clamp(cy + dy, 0, h - 1);
-            const int g = grad(x, y);
-            if (g < bg) { bg = g; bx = x; by = y; }
-          }
-      }
-      centers.push_back({bx, by, img.at(bx, by)});
-    }
-  }
-  if (centers.empty()) centers.push_back({w / 2, h / 2, img.at(w / 2, h / 2)});
-
-  ImageI32 labels(w, h, -1);
+// `iterations` rounds of per-pixel assignment and scatter update (the update after the last round
+// too; with scale_up its centres are in the coordinates of the image img halves).
+inline void slic_rounds_reference(const ImageU8& img, int S, std::int64_t m2, std::vector<RefCenter>& centers,
+                                  int iterations, ImageI32& labels, bool scale_up) {
+  const int w = img.width, h = img.height;
+  const std::int64_t S2 = std::int64_t(S) * S;
   std::vector<std::uint32_t> dist(std::size_t(w) * std::size_t(h));
   std::vector<std::int64_t> sx(centers.size()), sy(centers.size()), si(centers.size()), cnt(centers.size());
-  for (int it = 0; it < p.iterations; ++it) {
+  for (int it = 0; it < iterations; ++it) {
     std::fill(dist.begin(), dist.end(), std::numeric_limits<std::uint32_t>::max());
     for (std::size_t k = 0; k < centers.size(); ++k) {
       const RefCenter& c = centers[k];
@@ -77,10 +54,68 @@ inline Segmentation slic_segment_reference(const ImageU8& img, const Segmentatio
     }
     for (std::size_t k = 0; k < centers.size(); ++k) {
       const std::int64_t n = cnt[k];
-      if (n == 0) continue;
-      centers[k] = {(2 * sx[k] + n) / (2 * n), (2 * sy[k] + n) / (2 * n), (2 * si[k] + n) / (2 * n)};
+      const bool scale = scale_up && it + 1 == iterations;
+      if (n == 0) {
+        if (scale) centers[k] = {2 * centers[k].x, 2 * centers[k].y, centers[k].i};
+        continue;
+      }
+      if (scale)  // the mean of full-resolution positions 2x + 0.5, rounded
+        centers[k] = {(2 * sx[k] + n) / n, (2 * sy[k] + n) / n, (2 * si[k] + n) / (2 * n)};
+      else
+        centers[k] = {(2 * sx[k] + n) / (2 * n), (2 * sy[k] + n) / (2 * n), (2 * si[k] + n) / (2 * n)};
     }
   }
+}
+
+// The image halved: the rounded mean of each 2 x 2 block, the last column / row of an odd size repeated.
+inline ImageU8 halve_reference(const ImageU8& img) {
+  const int w = img.width, h = img.height;
+  ImageU8 out((w + 1) / 2, (h + 1) / 2);
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      const int xa = 2 * x, xb = std::min(2 * x + 1, w - 1), ya = 2 * y, yb = std::min(2 * y + 1, h - 1);
+      out.at(x, y) = static_cast<std::uint8_t>((img.at(xa, ya) + img.at(xb, ya) + img.at(xa, yb) + img.at(xb, yb) + 2) / 4);
+    }
+  return out;
+}
+
+inline Segmentation slic_segment_reference(const ImageU8& img, const SegmentationParams& p) {
+  const int w = img.width, h = img.height, S = p.region_size;
+  const std::int64_t m2 = std::int64_t(p.compactness) * p.compactness, S2 = std::int64_t(S) * S;
+
+  // Grid centres, moved to the lowest-gradient pixel of the 3x3 neighbourhood.
+  auto grad = [&](int x, int y) {
+    x = std::clamp(x, 1, w - 2);
+    y = std::clamp(y, 1, h - 2);
+    const int gx = img.at(x + 1, y) - img.at(x - 1, y), gy = img.at(x, y + 1) - img.at(x, y - 1);
+    return gx * gx + gy * gy;
+  };
+  std::vector<RefCenter> centers;
+  for (int cy = S / 2; cy < h; cy += S) {
+    for (int cx = S / 2; cx < w; cx += S) {
+      int bx = cx, by = cy, bg = std::numeric_limits<int>::max();
+      if (w >= 3 && h >= 3) {
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int x = std::clamp(cx + dx, 0, w - 1), y = std::clamp(cy + dy, 0, h - 1);
+            const int g = grad(x, y);
+            if (g < bg) { bg = g; bx = x; by = y; }
+          }
+      }
+      centers.push_back({bx, by, img.at(bx, by)});
+    }
+  }
+  if (centers.empty()) centers.push_back({w / 2, h / 2, img.at(w / 2, h / 2)});
+
+  if (p.coarse_iterations > 0 && w >= 2 && h >= 2 && S >= 2) {  // coarse start on the halved image
+    const ImageU8 half = halve_reference(img);
+    for (RefCenter& c : centers) c = {c.x / 2, c.y / 2, c.i};
+    ImageI32 coarse(half.width, half.height, -1);
+    slic_rounds_reference(half, S / 2, m2, centers, p.coarse_iterations, coarse, true);
+    for (RefCenter& c : centers) c = {std::min<std::int64_t>(c.x, w - 1), std::min<std::int64_t>(c.y, h - 1), c.i};
+  }
+  ImageI32 labels(w, h, -1);
+  slic_rounds_reference(img, S, m2, centers, p.iterations, labels, false);
 
   // Connectivity enforcement (4-connected flood fill in scan order). A piece smaller than the
   // minimum joins the segment of its neighbour found first (above or left of its first pixel).

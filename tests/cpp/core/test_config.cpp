@@ -17,6 +17,7 @@ std::string error_of(const std::string& toml) {
 TEST(Config, DefaultsLoadAndMatchTheStruct) {
   const MatcherParams p = load_matcher_config("");
   EXPECT_EQ(p.seg.region_size, 8);
+  EXPECT_EQ(p.seg.coarse_iterations, 0);
   EXPECT_EQ(p.cost.max_disparity, 64);
   EXPECT_DOUBLE_EQ(p.cost.alpha, 0.2);
   EXPECT_TRUE(p.esr.enabled);
@@ -50,6 +51,9 @@ TEST(Config, ErrorsNameTheFieldAndRange) {
   e = error_of("[boundary]\ncensus_radius = 3\n");
   EXPECT_NE(e.find("boundary.census_radius"), std::string::npos) << e;
   EXPECT_NE(e.find("[1, 2]"), std::string::npos) << e;
+  e = error_of("[segmentation]\ncoarse_iterations = 21\n");
+  EXPECT_NE(e.find("segmentation.coarse_iterations"), std::string::npos) << e;
+  EXPECT_NE(e.find("[0, 20]"), std::string::npos) << e;
   e = error_of("[cost\n");
   EXPECT_NE(e.find("test.toml:1"), std::string::npos) << e;
   EXPECT_THROW(load_matcher_config("/nonexistent/cfg.toml"), ConfigError);
@@ -57,8 +61,11 @@ TEST(Config, ErrorsNameTheFieldAndRange) {
 
 TEST(Config, RoundTripThroughToml) {
   MatcherParams p = parse_matcher_config(
-      "[cost]\nalpha = 0.3\nnmi_candidates = 0\n[esr]\ntau = 1.25\n[boundary]\nenabled = true\nmargin = 1.5\nwindow = 5\n", "t");
+      "[segmentation]\ncoarse_iterations = 2\n[cost]\nalpha = 0.3\nnmi_candidates = 0\n[esr]\ntau = 1.25\n[boundary]\nenabled = "
+      "true\nmargin = 1.5\nwindow = 5\n",
+      "t");
   const MatcherParams q = parse_matcher_config(config_to_toml(p), "roundtrip");
+  EXPECT_EQ(q.seg.coarse_iterations, 2);
   EXPECT_TRUE(q.boundary.enabled);
   EXPECT_DOUBLE_EQ(q.boundary.margin, 1.5);
   EXPECT_EQ(q.boundary.window, 5);

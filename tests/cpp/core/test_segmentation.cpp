@@ -120,14 +120,20 @@ TEST(Slic, SegmentsFollowAStepEdge) {
 // The fast SLIC (run-based centre update and connectivity, SIMD assignment) against the plain
 // per-pixel reference: identical labels and runs on random and textured images of odd sizes.
 TEST(Slic, MatchesScalarReference) {
-  struct Case { int w, h, S, m, it, pct; unsigned seed; bool textured; };
+  struct Case { int w, h, S, m, it, pct; unsigned seed; bool textured; int coarse = 0; };
   const Case cases[] = {{37, 23, 5, 10, 3, 25, 1, false}, {101, 67, 8, 20, 4, 25, 2, true},
                         {129, 41, 6, 40, 2, 50, 3, true}, {63, 95, 11, 5, 4, 10, 4, false},
                         {7, 5, 3, 20, 1, 25, 5, true},    {211, 53, 8, 20, 4, 100, 6, true},
                         // > 16 iterations (the iteration tags run out once) and the largest distances
                         // (S = 48, m = 100: D' just below the tag bits)
                         {61, 59, 4, 1, 20, 25, 7, false}, {131, 97, 48, 100, 17, 25, 8, true},
-                        {150, 120, 48, 100, 3, 25, 9, false}};
+                        {150, 120, 48, 100, 3, 25, 9, false},
+                        // coarse start (`coarse_iterations`) on odd and even sizes, narrow (S/2 < 8) and
+                        // wide windows, S = 3 (halved to 1), and 17 + 17 rounds (tags run out in both)
+                        {101, 67, 8, 20, 1, 25, 10, true, 2},  {129, 41, 6, 40, 2, 50, 11, true, 3},
+                        {37, 23, 5, 10, 2, 25, 12, false, 1},  {64, 48, 8, 20, 1, 25, 13, true, 4},
+                        {31, 29, 3, 20, 1, 25, 14, true, 2},   {150, 121, 48, 100, 2, 25, 15, true, 2},
+                        {61, 59, 4, 1, 17, 25, 16, false, 17}, {211, 53, 20, 30, 1, 25, 17, true, 2}};
   for (const Case& c : cases) {
     const ImageU8 img = c.textured ? test::texture_image(c.w, c.h, c.seed) : test::random_image(c.w, c.h, c.seed);
     SegmentationParams p;
@@ -135,10 +141,11 @@ TEST(Slic, MatchesScalarReference) {
     p.compactness = c.m;
     p.iterations = c.it;
     p.min_segment_pct = c.pct;
+    p.coarse_iterations = c.coarse;
     const Segmentation fast = slic_segment(img, p);
     const Segmentation ref = test::slic_segment_reference(img, p);
-    ASSERT_EQ(fast.count, ref.count) << c.w << "x" << c.h << " S=" << c.S;
-    EXPECT_EQ(fast.labels.data, ref.labels.data) << c.w << "x" << c.h << " S=" << c.S;
+    ASSERT_EQ(fast.count, ref.count) << c.w << "x" << c.h << " S=" << c.S << " coarse=" << c.coarse;
+    EXPECT_EQ(fast.labels.data, ref.labels.data) << c.w << "x" << c.h << " S=" << c.S << " coarse=" << c.coarse;
     EXPECT_EQ(fast.run_begin, ref.run_begin);
     EXPECT_EQ(fast.pixels, ref.pixels);
     ASSERT_EQ(fast.runs.size(), ref.runs.size());

@@ -15,6 +15,7 @@ struct SegmentationParams {
   int region_size = 8;       // S [px]
   int compactness = 20;      // m
   int iterations = 4;
+  int coarse_iterations = 0; // rounds on the image halved before the full-resolution ones (0 = off)
   int min_segment_pct = 25;  // [% of S*S]
 };
 

@@ -22,6 +22,9 @@ class MinRootUnionFind {
     }
     return a;
   }
+  // unite(b, a) for a root a whose new root is b's, known to be smaller than a (b < a in scan order):
+  // one find instead of two.
+  void attach(std::int32_t a, std::int32_t b) { parent_[std::size_t(a)] = find(b); }
   void unite(std::int32_t a, std::int32_t b) {
     const std::int32_t ra = find(a), rb = find(b);
     if (ra != rb) parent_[std::size_t(std::max(ra, rb))] = std::min(ra, rb);

@@ -94,7 +94,7 @@ def match(
             grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, 0.0)
     clock.lap("gradient")
 
-    seg_args = (s.region_size, s.compactness, s.iterations, s.min_segment_pct)
+    seg_args = (s.region_size, s.compactness, s.iterations, s.min_segment_pct, s.coarse_iterations)
     lab_l = labels_left if labels_left is not None else segmentation.slic(left, *seg_args)
     lab_r = labels_right if labels_right is not None else segmentation.slic(right, *seg_args)
     clock.lap("segmentation")

@@ -15,12 +15,23 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 
-def slic(img: np.ndarray, region_size: int, compactness: int, iterations: int, min_segment_pct: int) -> np.ndarray:
-    """Dense labels 0 .. n-1 (int32, H x W)."""
+def slic(
+    img: np.ndarray,
+    region_size: int,
+    compactness: int,
+    iterations: int,
+    min_segment_pct: int,
+    coarse_iterations: int = 0,
+) -> np.ndarray:
+    """Dense labels 0 .. n-1 (int32, H x W).
+
+    ``coarse_iterations`` > 0: that many rounds first on the image halved in both directions (2 x 2
+    block means, grid step S // 2, the same compactness), the centres then scaled back (x -> 2x + 0.5)
+    for the ``iterations`` full-resolution rounds, as the firmware's coarse start.
+    """
     h, w = img.shape
     S = region_size
     f = img.astype(np.float64)
-    spatial = (compactness / S) ** 2
 
     # Grid centres moved to the lowest central-difference gradient of the 3x3 neighbourhood.
     def grad(x: int, y: int) -> float:
@@ -46,6 +57,26 @@ def slic(img: np.ndarray, region_size: int, compactness: int, iterations: int, m
         centres.append((float(w // 2), float(h // 2), f[h // 2, w // 2]))
     C = np.array(centres)
 
+    if coarse_iterations > 0 and w >= 2 and h >= 2 and S >= 2:
+        half = _halve(f)
+        Ch = np.column_stack([np.floor(C[:, 0] / 2), np.floor(C[:, 1] / 2), C[:, 2]])
+        _rounds(half, S // 2, compactness, Ch, coarse_iterations)
+        C = np.column_stack([np.minimum(2 * Ch[:, 0] + 0.5, w - 1), np.minimum(2 * Ch[:, 1] + 0.5, h - 1), Ch[:, 2]])
+    labels = _rounds(f, S, compactness, C, iterations)
+    return enforce_connectivity(labels, max(1, S * S * min_segment_pct // 100))
+
+
+def _halve(f: np.ndarray) -> np.ndarray:
+    """Means of 2 x 2 blocks (the last column / row of an odd size repeated)."""
+    h, w = f.shape
+    p = np.pad(f, ((0, h % 2), (0, w % 2)), mode="edge")
+    return (p[0::2, 0::2] + p[0::2, 1::2] + p[1::2, 0::2] + p[1::2, 1::2]) / 4.0
+
+
+def _rounds(f: np.ndarray, S: int, compactness: int, C: np.ndarray, iterations: int) -> np.ndarray:
+    """``iterations`` rounds of assignment within +-S of each centre and update by the mean (C in place)."""
+    h, w = f.shape
+    spatial = (compactness / S) ** 2
     labels = np.full((h, w), -1, dtype=np.int64)
     ys, xs = np.mgrid[0:h, 0:w]
     for _ in range(iterations):
@@ -64,7 +95,7 @@ def slic(img: np.ndarray, region_size: int, compactness: int, iterations: int, m
         for col, v in enumerate((xs[ok], ys[ok], f[ok])):
             s = np.bincount(lab, weights=v, minlength=len(C))
             C[has, col] = s[has] / n[has]
-    return enforce_connectivity(labels, max(1, S * S * min_segment_pct // 100))
+    return labels
 
 
 def enforce_connectivity(labels: np.ndarray, min_size: int) -> np.ndarray:
