@@ -7,13 +7,16 @@
 // Iteration tag: the best distance per pixel is kept as tag << 28 | D' (D' < 2^28 by the bound above),
 // the tag one lower each iteration, so every distance of an earlier iteration compares larger than any
 // of this one — what refilling the distances with UINT32_MAX before each iteration did, without the
-// pass over the image (16 iterations per fill).
+// pass over the image (16 iterations per fill). Stored biased (tagged D' ^ 2^31 as int32), so the
+// comparisons are signed ones (assign_window).
 // Centres: grid of step S, then moved to the lowest-gradient pixel of their 3x3 neighbourhood.
+// Coarse start (coarse_iterations > 0, docs/algorithm.md 1): the first rounds on the image halved
+// (2 x 2 block means, step S/2), the centres then scaled back to full resolution.
 // Centre update: integer mean (rounded) of the assigned pixels' position and grey level.
 // Connectivity: pieces smaller than min_segment_pct % of S^2 join the previous neighbouring segment.
 #include <algorithm>
-#include <cstring>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 
@@ -31,16 +34,6 @@ struct Center {
 // Width of the assignment's blocks: 8 uint32 lanes, one AVX2 register (two SSE / NEON ones).
 constexpr int kLanes = 8;
 
-// One centre's search window: rows [y0, y1], columns x0 .. x0 + nb * kLanes - 1 of the padded planes
-// (row stride `stride`); keep the closer centre per pixel (branch-free, SIMD; one call per window so
-// the clone dispatch and loop set-up are paid once per centre). The window is [x0, x1] rounded up to
-// whole blocks, so every row is nb full vectors with no scalar remainder (a 17-pixel row was two
-// vectors and a scalar tail); the columns past x1 read the padded spatial table's UINT32_MAX (past
-// the window) or lie in the planes' padding (past the image), and D = max(t^2 + sp, sp) keeps such
-// a pixel at UINT32_MAX, never closer: the result is that of the window alone. The spatial term
-// (dx^2 + dy^2) * m^2 (+ the iteration tag) is read from `spatial`, the table of every offset from a
-// centre (the same for all centres: their positions are integers), so a pixel costs one 16-bit
-// multiplication ((dI * S)^2, below) instead of three.
 // kLanes-wide vectors (GCC vector extensions: one AVX2 register in the avx2 clone, two SSE registers
 // in the default one, two NEON registers on the robot).
 using U8xL = std::uint8_t __attribute__((vector_size(kLanes)));
@@ -52,6 +45,16 @@ using U32xL = std::uint32_t __attribute__((vector_size(4 * kLanes)));
 // no unsigned one).
 constexpr std::uint32_t kBias = 0x80000000u;
 
+// One centre's search window, for windows narrower than 2 kLanes columns (S < 8: the coarse rounds'
+// 9 px): rows [y0, y1], columns x0 .. x0 + nb * kLanes - 1 of the padded planes (row stride `stride`);
+// keep the closer centre per pixel (branch-free, SIMD; one call per window so the clone dispatch and
+// loop set-up are paid once per centre). The window [x0, x1] is rounded up to whole blocks, so a row
+// is nb full vectors with no scalar tail (a 9-pixel row was one 16-lane int16 vector's worth of set-up
+// and a scalar loop); the columns past x1 read INT32_MAX (UINT32_MAX biased) from the padded spatial
+// table (past the window) or lie in the planes' padding (past the image), and D = max(t^2 + sp, sp)
+// keeps such a pixel at INT32_MAX, never closer: the result is that of the window alone. The spatial
+// term (dx^2 + dy^2) * m^2 (+ the iteration tag) is read from `spatial`, the table of every offset from
+// a centre (the same for all centres: their positions are integers).
 FS_TARGET_CLONES
 void assign_window(const std::uint8_t* __restrict img, std::int32_t* __restrict dist, std::int32_t* __restrict labels,
                    std::size_t stride, int x0, int nb, int y0, int y1, std::int32_t ci, std::int32_t cx, std::int32_t cy,
