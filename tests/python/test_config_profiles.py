@@ -15,7 +15,7 @@ CONFIG = ROOT / "common" / "config"
 
 # profile -> the (section, field) pairs it may set, with their values
 PROFILES = {
-    "fast.toml": {("densify", "interpolate_max_diff"): 0},
+    "fast.toml": {("segmentation", "iterations"): 2, ("densify", "interpolate_max_diff"): 0},
 }
 
 

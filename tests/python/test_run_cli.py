@@ -80,11 +80,8 @@ def test_body_fit_completes_a_post_from_its_visible_arc(firmware_bin, common_dir
         assert not bodies
         return
     assert len(bodies) >= len(planned) - 2  # from the first frames with the near side in range on
-    # The first fit comes from the shortest arc (the near side just in range) and may be off by a little more:
-    # with session 38's segmentation it is 10 cm / r 0.36 m, every later one 2 cm / r 0.29-0.30 m.
-    for i, (x, y, radius) in enumerate(bodies):
-        centre_tol, radius_tol = (0.12, 0.08) if i == 0 else (0.08, 0.06)
-        assert math.hypot(x - 2.0, y - 0.55) < centre_tol and abs(radius - 0.30) < radius_tol, (i, x, y, radius)
+    for x, y, radius in bodies:
+        assert math.hypot(x - 2.0, y - 0.55) < 0.08 and abs(radius - 0.30) < 0.06, (x, y, radius)
     # the run report draws the last planned frame's cells and bodies beside the true post
     from fuzzyctl.runreport import plan_view, write_report
 

@@ -14,8 +14,8 @@ enum class GainTrigger {
 struct SegmentationParams {
   int region_size = 8;       // S [px]
   int compactness = 20;      // m
-  int iterations = 1;         // full-resolution rounds
-  int coarse_iterations = 1;  // rounds on the image halved before them (0 = off)
+  int iterations = 4;         // full-resolution rounds
+  int coarse_iterations = 0;  // rounds on the image halved before them (0 = off)
   int min_segment_pct = 25;  // [% of S*S]
 };
 
