@@ -240,17 +240,13 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
         == d[f"disp_{side}_wta"]
         for side in ("left", "right")
     ]
-    b = cfg.boundary
-    if b.enabled:  # docs/algorithm.md 4b: the painted table, refined by the reference, is the WTA map
-        cen = {"left": boundary.census(r.left, b.census_radius), "right": boundary.census(r.right, b.census_radius)}
-        bits = (2 * b.census_radius + 1) ** 2 - 1
-        painted = []
-        for side, other, direction in (("left", "right", +1), ("right", "left", -1)):
+    if cfg.boundary.enabled:  # docs/algorithm.md 4b: the painted table, refined by the reference, is the WTA map
+        tables = []
+        for side in ("left", "right"):
             q4 = d[f"seg_{side}"][:, dumpmod.SEG_DISP_Q4]
-            table = np.where(q4 < 0, np.nan, q4 / dumpmod.DISP_SCALE)[d[f"labels_{side}"]]
-            refined = boundary.refine(table, cen[side], cen[other], direction, b.window, b.margin, b.step, b.min_jump,
-                                      b.passes, bits)
-            painted.append(dumpmod.disp_to_q4(refined) == d[f"disp_{side}_wta"])
+            tables.append(np.where(q4 < 0, np.nan, q4 / dumpmod.DISP_SCALE)[d[f"labels_{side}"]])
+        refined = boundary.refine_pair(tables[0], tables[1], r.left, r.right, cfg.boundary)
+        painted = [dumpmod.disp_to_q4(m) == d[f"disp_{side}_wta"] for m, side in zip(refined, ("left", "right"))]
     values["wta_paint_isolated_pct"] = 100.0 * float(np.mean(np.concatenate([p.ravel() for p in painted])))
     fw_wta_l, fw_wta_r, fw_lr = d.disp("disp_left_wta"), d.disp("disp_right_wta"), d.disp("disp_lr")
     _, iso_mask = left_right_check(fw_wta_l, fw_wta_r, cfg.lr_check.max_diff)

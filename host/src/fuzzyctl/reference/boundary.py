@@ -99,3 +99,11 @@ def refine(disp: np.ndarray, census_ref: np.ndarray, census_other: np.ndarray, d
             out = np.where(better, c, out)
         cur = np.where(need, out, cur)
     return cur
+
+
+def refine_pair(disp_l: np.ndarray, disp_r: np.ndarray, left: np.ndarray, right: np.ndarray, b) -> tuple[np.ndarray, np.ndarray]:
+    """Both WTA maps refined with the ``[boundary]`` config section ``b``, as the firmware's matcher does:
+    the census of each image once, and a partner outside the other image counting all its bits."""
+    cl, cr = census(left, b.census_radius), census(right, b.census_radius)
+    args = (b.window, b.margin, b.step, b.min_jump, b.passes, (2 * b.census_radius + 1) ** 2 - 1)
+    return refine(disp_l, cl, cr, +1, *args), refine(disp_r, cr, cl, -1, *args)

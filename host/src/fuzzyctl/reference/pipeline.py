@@ -109,13 +109,8 @@ def match(
     fis_check = _cross_check(fis, dec_l, dec_r) if engine == "fast" else 0.0
     disp_l = wta.paint_segments(lab_l, dec_l.disparity_sub)
     disp_r = wta.paint_segments(lab_r, dec_r.disparity_sub)
-    b = cfg.boundary
-    if b.enabled:  # not in the paper: docs/algorithm.md 4b (timed with the WTA, as in the firmware)
-        cl, cr = boundary.census(left, b.census_radius), boundary.census(right, b.census_radius)
-        bits = (2 * b.census_radius + 1) ** 2 - 1
-        args = (b.window, b.margin, b.step, b.min_jump, b.passes, bits)
-        disp_l = boundary.refine(disp_l, cl, cr, +1, *args)
-        disp_r = boundary.refine(disp_r, cr, cl, -1, *args)
+    if cfg.boundary.enabled:  # not in the paper: docs/algorithm.md 4b (timed with the WTA, as in the firmware)
+        disp_l, disp_r = boundary.refine_pair(disp_l, disp_r, left, right, cfg.boundary)
     clock.lap("wta")
 
     disp_lr, mask = lrcheck.left_right_check(disp_l, disp_r, lr.max_diff)  # eq. (13)
