@@ -256,6 +256,30 @@ TEST(Esr, BlockEntropyOnPiecewiseConstantMaps) {
   }
 }
 
+TEST(Esr, BlockEntropyWithANeedMaskEqualsTheFullImageWhereNeeded) {
+  // Needed pixels alone (ESR's masks): random masks from sparse (long gaps, the rebuild path) to
+  // dense (slides), on random and piecewise-constant maps of odd sizes; every window path (the
+  // reciprocal up to 9, the 32-bit division above). Unneeded pixels are 0.
+  for (auto [w, h, win, pct] : {std::tuple{41, 17, 5, 50}, {23, 31, 9, 10}, {7, 5, 11, 60}, {64, 3, 3, 90},
+                                {77, 29, 5, 3}, {53, 21, 13, 30}, {39, 19, 7, 100}}) {
+    for (const bool patches : {false, true}) {
+      ImageI16 d = random_disp(w, h, 20, 17u + unsigned(win), 10, 3);
+      if (patches)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) d.at(x, y) = d.at(x - x % 6, y - y % 5);
+      std::mt19937 rng(unsigned(w * 7 + pct));
+      std::uniform_int_distribution<int> u(0, 99);
+      ImageU8 need(w, h, 0);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) need.at(x, y) = u(rng) < pct ? 1 : 0;
+      const ImageI32 full = block_entropy(d, win, 20), part = block_entropy(d, win, 20, &need);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          ASSERT_EQ(part.at(x, y), need.at(x, y) ? full.at(x, y) : 0) << x << "," << y << " w" << win << " pct " << pct;
+    }
+  }
+}
+
 TEST(Esr, EntropyOfKnownBlocks) {
   ImageI16 d(9, 9, static_cast<std::int16_t>(3 * kDispScale));
   EXPECT_EQ(block_entropy(d, 3, 8).at(4, 4), 0);  // constant block: 0 bit

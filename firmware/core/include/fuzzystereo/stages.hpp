@@ -163,7 +163,9 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
 // ---- esr/ -----------------------------------------------------------------------------------
 // eq. (14): Shannon entropy [bit] of the integer disparities in a w x w block around every pixel
 // (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
-ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity);
+// need (optional, same size): only pixels with need != 0 are computed, the others are 0 (a gap
+// between needed pixels wider than the window rebuilds the block instead of sliding across it).
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need = nullptr);
 // Mean disparity (Q4) of the valid pixels of a w x w block around every pixel (integral image).
 ImageI16 block_mean(const ImageI16& disp, int window);
 // eq. (15): replace d with the mean of the lower-entropy block when |E_l - E_r| > tau.

@@ -66,7 +66,7 @@ void same_row(const std::int16_t* __restrict b, const std::int16_t* __restrict b
 }
 }  // namespace
 
-ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need) {
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
@@ -133,27 +133,56 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity) {
         else          { sum_t -= Tp[c] - Tp[c - uk]; c -= uk; n -= uk; }
       }
     };
-    for (int x = 0; x <= std::min(w - 1, r - 1); ++x) add_col(x, +1);
-    for (int x = 0; x < w; ++x) {
-      const bool leave = x - r - 1 >= 0, enter = x + r < w;
-      if (leave && enter && srow[x + r] >= nr) {  // the same column leaves and enters
-        o[x] = o[x - 1];
-        continue;
-      }
-      if (leave) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
-      if (enter) add_col(x + r, +1);
-      // eq. (14): detail::entropy_q16's integer quotient, by the reciprocal (windows <= 9), a
-      // 32-bit division when the table fits (w <= 33: T[w^2] < 2^32) or the 64-bit one.
+    // eq. (14)'s quotient of the block in hist: detail::entropy_q16's integer quotient, by the
+    // reciprocal (windows <= 9), a 32-bit division when the table fits (w <= 33: T[w^2] < 2^32) or
+    // the 64-bit one.
+    auto entropy = [&]() -> std::int32_t {
       if (reciprocal) {
         const std::uint64_t tn = Tp[n];
-        o[x] = n == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(((tn - sum_t + n / 2) * Rp[n]) >> 32);
-      } else if (small_table) {
+        return n == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(((tn - sum_t + n / 2) * Rp[n]) >> 32);
+      }
+      if (small_table) {
         const auto n32 = static_cast<std::uint32_t>(n);
         const auto tn = static_cast<std::uint32_t>(Tp[n]), st = static_cast<std::uint32_t>(sum_t);
-        o[x] = n32 == 0 || tn <= st ? 0 : static_cast<std::int32_t>((tn - st + n32 / 2) / n32);
-      } else {
-        o[x] = static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+        return n32 == 0 || tn <= st ? 0 : static_cast<std::int32_t>((tn - st + n32 / 2) / n32);
       }
+      return static_cast<std::int32_t>(detail::entropy_q16(T, n, sum_t));
+    };
+    // The block centred on column `cur` is in hist (cur = -1: none yet); e is its entropy when
+    // have_e. Moving the centre one column right: where the same column leaves and enters, the
+    // histogram, and so e, stays as it is.
+    const std::uint8_t* need_row = need ? need->row(y) : nullptr;
+    int cur = -1;
+    bool have_e = false;
+    std::int32_t e = 0;
+    auto step_right = [&] {
+      const int x = cur + 1;
+      const bool leave = x - r - 1 >= 0, enter = x + r < w;
+      cur = x;
+      if (leave && enter && srow[x + r] >= nr) return;  // the same column leaves and enters
+      if (leave) add_col(x - r - 1, -1);  // leave first: counts never exceed w*w (table size)
+      if (enter) add_col(x + r, +1);
+      have_e = false;
+    };
+    for (int x = 0; x < w; ++x) {
+      if (need_row && need_row[x] == 0) continue;  // not needed: left as 0
+      if (cur >= 0 && x - cur > window) {
+        // A gap wider than the window: emptying the block and building the new one (2w column
+        // steps) is cheaper than sliding across (2 steps per column).
+        for (int c = std::max(0, cur - r); c <= std::min(w - 1, cur + r); ++c) add_col(c, -1);
+        cur = -1;
+      }
+      if (cur < 0) {  // n = sum_t = 0 and every bin 0 here
+        for (int c = std::max(0, x - r); c <= std::min(w - 1, x + r); ++c) add_col(c, +1);
+        cur = x;
+        have_e = false;
+      }
+      while (cur < x) step_right();
+      if (!have_e) {
+        e = entropy();
+        have_e = true;
+      }
+      o[x] = e;
     }
   }
   return out;
@@ -228,11 +257,31 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
   // KITTI eq. (15) replaces ~20 % of the pixels, and a per-pixel w x w sum there cost more
   // (session 11, six interleaved bench runs: ESR / segmentation time 0.565 -> 0.500 at 1 thread,
   // 0.582 -> 0.518 at 2; docs/results.md "Speed, session 11").
+  //
+  // eq. (15) reads E_l only at valid left pixels whose partner x - d lies in the image, and E_r
+  // only at those partners (~50 % of either map on KITTI): the entropies are computed there alone
+  // (block_entropy's `need` masks), the rest of each entropy image is 0 and never read.
+  ImageU8 need_l(w, h, 0), need_r(w, h, 0);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < h; ++y) {
+    const std::int16_t* d = disp_lr.row(y);
+    std::uint8_t* nl = need_l.row(y);
+    std::uint8_t* nr = need_r.row(y);
+    for (int x = 0; x < w; ++x) {
+      if (d[x] == kInvalidDisp) continue;
+      const int xr = partner_x(x, d[x]);
+      if (xr < 0 || xr >= w) continue;
+      nl[x] = 1;
+      nr[xr] = 1;
+    }
+  }
   ImageI32 El, Er;
   ImageI16 Ml, Mr;
   detail::run_pair(
-      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity); Ml = block_mean(disp_lr, p.window); },
-      [&] { Er = block_entropy(disp_right, p.window, max_disparity); Mr = block_mean(disp_right, p.window); });
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l); Ml = block_mean(disp_lr, p.window); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r); Mr = block_mean(disp_right, p.window); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out = disp_lr;
   if (replaced) *replaced = ImageU8(w, h, 0);
