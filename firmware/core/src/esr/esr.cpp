@@ -290,10 +290,8 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
 #endif
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
-      const std::int16_t d = disp_lr.at(x, y);
-      if (d == kInvalidDisp) continue;
-      const int xr = partner_x(x, d);
-      if (xr < 0 || xr >= w) continue;
+      if (need_l.at(x, y) == 0) continue;  // invalid, or its partner outside the image
+      const int xr = partner_x(x, disp_lr.at(x, y));
       const std::int64_t el = El.at(x, y), er = Er.at(xr, y);
       if (std::llabs(el - er) <= tau) continue;  // eq. (15), "otherwise"
       const std::int16_t m = el < er ? Ml.at(x, y) : Mr.at(xr, y);
