@@ -60,7 +60,7 @@ void run_detect(const DetectOptions& o) {
       throw UserError("left '" + o.left + "' is " + std::to_string(lc.cols) + "x" + std::to_string(lc.rows) + " but right '" +
                       o.right + "' is " + std::to_string(rc.cols) + "x" + std::to_string(rc.rows) + "; a rectified pair must match");
     const DetectInput in = detect_input_from(cfg.values);
-    const Matcher matcher(detection_matcher_params(cfg.matcher, in), load_fis_definition(""));
+    const Matcher matcher(detection_matcher_params(cfg.matcher, cfg.values), load_fis_definition(""));
     const MatchResult mr = matcher.match(to_core_gray(lc), to_core_gray(rc));
     disp = detection_disparity(mr, in);  // [detect] input: disp_esr or the densified disp_final
     mt = mr.timings;

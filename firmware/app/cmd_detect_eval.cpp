@@ -319,7 +319,7 @@ void run_detect_eval(const EvalOptions& o) {
   const DetectInput input = detect_input_from(cfg.values);
   const bool densify_after = !o.oracle && input == DetectInput::Dense && cfg.matcher.densify.enabled;
   const bool need_right = densify_after && cfg.matcher.densify.occlusion_fill;  // the occlusion fill reads it
-  MatcherParams esr_params = detection_matcher_params(cfg.matcher, DetectInput::Esr);
+  MatcherParams esr_params = detection_matcher_params(cfg.matcher, cfg.values);  // [detect] matcher_boundary
   esr_params.densify = DensifyParams{};
   esr_params.densify.enabled = false;
   std::unique_ptr<Matcher> matcher;

@@ -458,7 +458,7 @@ LoopResult RobotLoop::run() {
 
   // ---- pipeline ----
   const DetectInput det_input = detect_input_from(I.cfg.values);
-  const Matcher matcher(detection_matcher_params(I.cfg.matcher, det_input), load_fis_definition(""));
+  const Matcher matcher(detection_matcher_params(I.cfg.matcher, I.cfg.values), load_fis_definition(""));
   const LoopParams lp = loop_params_from(I.cfg.values);
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);

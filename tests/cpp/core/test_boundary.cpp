@@ -118,6 +118,8 @@ TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {
       {53, 31, 7, 4, 1, 1, 1.0, +1, 2}, {53, 31, 7, 4, 1, 1, 1.0, -1, 2}, {41, 27, 5, 4, 2, 1, 0.0, +1, 2},
       {67, 35, 3, 2, 1, 2, 0.5, -1, 1}, {29, 45, 1, 3, 3, 1, 2.0, +1, 2}, {79, 23, 9, 6, 1, 2, 1.5, +1, 2},
       {13, 11, 7, 4, 1, 1, 1.0, -1, 2},
+      // larger images: many segments, candidates from several neighbours, two passes
+      {150, 77, 7, 4, 1, 1, 1.0, +1, 2}, {131, 70, 5, 4, 2, 2, 1.0, -1, 2},
   };
   int switched_total = 0;
   for (const Case& c : cases) {

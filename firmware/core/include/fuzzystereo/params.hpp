@@ -47,10 +47,10 @@ struct FisParams {
 struct BoundaryParams {
   bool enabled = false;
   int census_radius = 2;  // census window (2 r + 1)^2 - 1 bits, r <= 2 (24 bits)
-  int window = 5;         // [px], odd: side of the square over which census distances are summed
+  int window = 7;         // [px], odd: side of the square over which census distances are summed
   double margin = 1.0;    // [bits per window pixel] a candidate must beat the own disparity by more
   int step = 4;           // [px] candidates are read at +-step and +-2 step along the row and column
-  int min_jump = 2;       // [px] only disparities this far from the pixel's own are candidates
+  int min_jump = 1;       // [px] only disparities this far from the pixel's own are candidates
   int passes = 1;
 };
 
