@@ -106,7 +106,7 @@ struct LoopParams {
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
-      silhouette_centres, ray_centres;
+      silhouette_centres, ray_centres, near_track_keep_overlapping;
   NearTrack near_track_moving;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
@@ -147,6 +147,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
   p.edge_meas_sigma_scale = v.num("loop.edge_meas_sigma_scale");
   p.silhouette_centres = v.flag("loop.silhouette_centres");
+  p.near_track_keep_overlapping = v.flag("loop.near_track_keep_overlapping");
   p.ray_centres = v.flag("loop.ray_centres");
   p.seen_max_age_s = v.num("loop.seen_max_age_s");
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
@@ -989,8 +990,11 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
+          // near_track_keep_overlapping (session 41): keep it even then — the planner's escape rule
+          // ([planner] escape_inside_margin) lets the robot only move away from a static circle it is
+          // already inside, which is what a mover beside the robot calls for.
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              dist > tr.radius_m + I.rp.radius_m) {
+              (lp.near_track_keep_overlapping || dist > tr.radius_m + I.rp.radius_m)) {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
             // of where it is (the tracks that follow a turned mover but fail the direction test).
@@ -1320,7 +1324,7 @@ LoopResult RobotLoop::run() {
       fj["true_front_m"] =
           std::round(true_front_m(*I.world, true_at_capture, robot::ns_to_s(t_frame - t0), I.rp.radius_m, 1.0) * 100) / 100;
     if (perception_fault) fj["perception"] = health.fault();
-    if (!opt.record_dir.empty() && frame % 10 == 0) {
+    if (!opt.record_dir.empty() && (frame % 10 == 0 || std::getenv("FS_RECORD_PLAN_EVERY_FRAME"))) {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});
       fj["plan_obstacles"] = std::move(mj);
