@@ -67,7 +67,7 @@ void print_result(const LoopResult& r) {
 
 struct RunOptions {
   std::string source, motors = "sim", config, goal, record, json_out, blind_side = "left", blind_mode = "dark";
-  int max_frames = 0, snapshot_every = 10, stall_frame = -1, blind_frame = -1, record_fail_frame = -1;
+  int max_frames = 0, snapshot_every = 10, plan_every = 10, stall_frame = -1, blind_frame = -1, record_fail_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
   bool realtime = false, quiet = false;
   // Serial link (docs/protocol.md): device services next to the loop.
@@ -194,6 +194,7 @@ void run_run(const RunOptions& o) {
   lo.record_dir = o.record;
   lo.max_frames = o.max_frames;
   lo.snapshot_every = o.snapshot_every;
+  lo.plan_every = o.plan_every;
   lo.stall_frame = o.stall_frame;
   lo.stall_ms = o.stall_ms;
   lo.blind_frame = o.blind_frame;
@@ -247,7 +248,7 @@ void run_run(const RunOptions& o) {
 }
 
 struct SuiteOptions {
-  int count = 100, blocked = -1, jobs = 1, snapshot_every = 0;
+  int count = 100, blocked = -1, jobs = 1, snapshot_every = 0, plan_every = 10;
   std::uint64_t seed = 1;
   std::string config, json_out, record, only;
   double latency_ms = 100;
@@ -311,6 +312,7 @@ void run_suite(const SuiteOptions& o) {
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;
           lo.snapshot_every = o.snapshot_every;
+          lo.plan_every = o.plan_every;
         }
         RobotLoop loop(cfg, lo);
         it.r = loop.run();
@@ -441,6 +443,9 @@ void add_run_command(CLI::App& app) {
   c->add_option("--goal", o->goal, "Goal X,Y in metres, world frame (default: the scene's [mission])");
   c->add_option("--record", o->record, "Write the run record (frames.jsonl, run.json, annotated frames) here");
   c->add_option("--snapshot-every", o->snapshot_every, "Record an annotated frame every N frames")->capture_default_str();
+  c->add_option("--plan-every", o->plan_every, "Record the planner's obstacles every N frames (1 for tracing a contact)")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
   c->add_option("--max-frames", o->max_frames, "Stop after N frames (0 = no limit)");
   c->add_option("--time-limit", o->time_limit, "Stop after this many seconds (0 = the scene's mission limit)");
   c->add_option("--latency-ms", o->latency_ms, "Simulated processing latency before a command reaches the motors")
@@ -473,6 +478,10 @@ void add_sim_suite_command(CLI::App& sim) {
   c->add_option("--record", o->record, "Write each scenario's run record under this directory");
   c->add_option("--snapshot-every", o->snapshot_every,
                 "With --record: an annotated frame every N frames (0 = none; 1 for tracing one scenario)")
+      ->capture_default_str();
+  c->add_option("--plan-every", o->plan_every,
+                "With --record: the planner's obstacles every N frames (1 for tracing contacts: fuzzyctl contacts)")
+      ->check(CLI::Range(1, 1000000))
       ->capture_default_str();
   c->add_option("--json", o->json_out, "Write the summary and every scenario as JSON");
   c->add_option("--only", o->only, "Run only these scenarios of the seed: e.g. 3,17,b0 (b = without a free path)");

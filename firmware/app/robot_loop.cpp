@@ -1324,7 +1324,7 @@ LoopResult RobotLoop::run() {
       fj["true_front_m"] =
           std::round(true_front_m(*I.world, true_at_capture, robot::ns_to_s(t_frame - t0), I.rp.radius_m, 1.0) * 100) / 100;
     if (perception_fault) fj["perception"] = health.fault();
-    if (!opt.record_dir.empty() && (frame % 10 == 0 || std::getenv("FS_RECORD_PLAN_EVERY_FRAME"))) {
+    if (!opt.record_dir.empty() && opt.plan_every > 0 && frame % opt.plan_every == 0) {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});
       fj["plan_obstacles"] = std::move(mj);

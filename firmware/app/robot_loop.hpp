@@ -29,6 +29,7 @@ struct LoopOptions {
   std::optional<robot::Vec2> goal;  // overrides the scene's [mission] goal
   std::string record_dir;        // empty = no record
   int snapshot_every = 10;       // record: annotated frame every N frames (0 = none)
+  int plan_every = 10;           // record: the planner's obstacles (plan_obstacles, plan_kinds) every N frames
   int max_frames = 0;            // 0 = until goal / time limit / end of stream / SIGINT
   double time_limit_s = 0;       // 0 = the scene's mission time limit (sim) or none
   bool realtime = false;         // sim: pace frames on the wall clock

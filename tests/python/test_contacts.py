@@ -126,3 +126,26 @@ def test_a_record_without_truth_is_named(tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["contacts", str(empty)]) != 0
+
+
+def test_planned_tells_whether_the_planner_had_the_obstacle(tmp_path: Path) -> None:
+    # A mover from 60 deg, tracked throughout; the planner's list holds a disc on it (kind n) until
+    # 1.2 s and then only an unrelated map cell far away: in the last second (frames 1.0-1.8 s) 2 of 5
+    # frames covered it, the last one by nothing. A record without planner lists gives None.
+    from fuzzyctl.simworld import obstacle_state
+
+    o = _mover_from(60.0)
+    d = _record(tmp_path, "p", o, (0.3, 0.0), {"collided": True}, track_until=2.0)
+    assert trace_contact(d)["planned"] is None
+    frames = [json.loads(line) for line in (d / "frames.jsonl").read_text().splitlines()]
+    for f in frames:
+        x, y, _, _ = obstacle_state(o, f["t"])
+        if f["t"] <= 1.2 + 1e-9:
+            f["plan_obstacles"], f["plan_kinds"] = [[x + 0.1, y, 0.2], [5.0, 5.0, 0.03]], "nm"
+        else:
+            f["plan_obstacles"], f["plan_kinds"] = [[5.0, 5.0, 0.03]], "m"
+    (d / "frames.jsonl").write_text("\n".join(json.dumps(f) for f in frames) + "\n")
+    p = trace_contact(d)["planned"]
+    assert p == {"frames": 5, "covered": 2, "last_kinds": ""}
+    # the CLI shows it
+    assert main(["contacts", str(d)]) in (0, None)

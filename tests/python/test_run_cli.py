@@ -35,6 +35,22 @@ def test_mission_reaches_goal_without_collision(firmware_bin, common_dir, tmp_pa
     assert max(f["map_cells"] for f in frames) > 0
 
 
+def test_plan_every_sets_which_frames_record_the_planners_obstacles(firmware_bin, common_dir, tmp_path):
+    # The record keeps the planner's obstacles on every 10th frame by default; --plan-every N on every
+    # Nth (1 for tracing contacts with `fuzzyctl contacts`, docs/robot.md "Session 41"); 0 is refused.
+    rec = tmp_path / "rec"
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
+            "--max-frames", "12", "--record", str(rec), "--snapshot-every", "0", "--plan-every", "3")
+    assert p.returncode == 0, p.stderr
+    frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
+    assert len(frames) == 12
+    assert [f["frame"] for f in frames if "plan_obstacles" in f] == [0, 3, 6, 9]
+    assert all(len(f["plan_kinds"]) == len(f["plan_obstacles"]) for f in frames if "plan_obstacles" in f)
+    p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
+            "--max-frames", "2", "--plan-every", "0")
+    assert p.returncode != 0 and "--plan-every" in p.stderr
+
+
 def run_recorded_scene(firmware_bin, scene, tmp_path, config_text):
     """`run` on a scene with a config and a record: (result JSON, the record's frames)."""
     cfg = tmp_path / "c.toml"

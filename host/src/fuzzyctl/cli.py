@@ -719,15 +719,25 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
         console.print(f"wrote {json_out}")
 
 
+def _planned(p: dict | None) -> str:
+    """The contacts table's "planned" cell: frames of the last second with the obstacle in the planner's
+    list / frames with the list recorded, and the kinds covering it at the last of them."""
+    if p is None:
+        return "-"
+    return f"{p['covered']}/{p['frames']} {p['last_kinds'] or 'none'}"
+
+
 @app.command("contacts", short_help="Trace the contacts of simulator run records: what was hit, what the robot knew.")
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
 @click.option("--json", "json_out", type=_path, default=None, help="Also write the contacts as JSON.")
 def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     """For each run that ended in a contact (`fuzzystereo sim suite --record DIR`; pass run
     directories or a suite's record directory): the obstacle hit, its bearing, whether the camera saw
-    it, what the robot was doing, the last track near it, the least share of the ground ahead the
-    detector explained in the last second ("ground %", docs/robot.md "Session 32"), and a class
-    (docs/robot.md "Session 29")."""
+    it, what the robot was doing, the last track near it, whether the planner had it in the last
+    second ("planned": covered frames / frames with the planner's obstacles recorded, and the kinds
+    covering it at the last; record with `--plan-every 1` to have every frame), the least share of the
+    ground ahead the detector explained in the last second ("ground %", docs/robot.md "Session 32"),
+    and a class (docs/robot.md "Session 29")."""
     import json as _json
 
     from rich.table import Table
@@ -747,8 +757,10 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     opt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     t = Table(title=f"contacts: {len(r['contacts'])} of {r['records']} records")
     for col in ("run", "t s", "class", "obst", "mover v", "bearing deg", "robot v, w", "seen s ago", "tracked s ago", "track",
-                "ground %"):
-        t.add_column(col, justify="right")
+                "planned", "ground %"):
+        # the run's name is what one looks up next: never cut
+        t.add_column(col, justify="right", no_wrap=col == "run",
+                     min_width=max((len(c["run"]) for c in r["contacts"]), default=3) if col == "run" else None)
     for c in r["contacts"]:
         tr = c.get("track")
         t.add_row(c["run"], f"{c['time_s']:.1f}", c["class"], str(c.get("obstacle")),
@@ -757,6 +769,7 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
                   opt(c.get("seen_s_before"), ".1f"), opt(c.get("tracked_s_before"), ".1f"),
                   "-" if tr is None else f"#{tr['id']} {'C' if tr['confirmed'] else 'u'}{'M' if tr['mover'] else ''} "
                                          f"{tr['speed_mps']:.2f} m/s",
+                  _planned(c.get("planned")),
                   opt(c.get("ground_ahead_min_pct"), ".0f"))
     console.print(t)
     console.print(", ".join(f"{k}: {v}" for k, v in r["classes"].items()))

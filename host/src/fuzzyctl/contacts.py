@@ -15,6 +15,10 @@ solid movers with their turns, :func:`fuzzyctl.simworld.obstacle_state`):
   towards the obstacle's side (angular command of the bearing's sign, above ``turn_radps``);
 - what it **knew**: when the obstacle was last inside the view (within ``view_range_m``), when a
   track was last within ``track_match_m`` of it, and that track's flags (confirmed, mover) and speed;
+- what it **planned with**: in the frames of the last ``ground_window_s`` that carry the planner's
+  obstacles (``plan_obstacles``, ``plan_kinds``: every 10th frame by default, every frame with
+  ``--plan-every 1``), how many had a planner disc overlapping the obstacle's true disc, and the kinds
+  of those discs at the last such frame (docs/robot.md "Session 41": in most contacts nothing);
   and the least share of the ground band ahead the detector explained in the last ``ground_window_s``
   (low: the robot drove at something the camera could not see; docs/robot.md "Session 32").
 
@@ -66,6 +70,26 @@ def ground_ahead_min_pct(frames: list[dict[str, Any]], t_from: float) -> float |
     the record has no such field (records before session 32)."""
     vals = [float(f["ground_ahead_pct"]) for f in frames if "ground_ahead_pct" in f and float(f["t"]) >= t_from]
     return min(vals) if vals else None
+
+
+def planned_cover(frames: list[dict[str, Any]], o: dict[str, Any], t_from: float) -> dict[str, Any] | None:
+    """Whether the planner had the obstacle ``o``: over the frames from ``t_from`` on that carry
+    ``plan_obstacles`` ([x, y, r] discs) and ``plan_kinds`` (one letter per disc), the number of them
+    with a disc overlapping the obstacle's true disc at that frame's time, and the kinds covering it
+    at the last of them ("" = nothing). None when no frame in the window carries planner obstacles."""
+    n = covered = 0
+    last_kinds = ""
+    for f in frames:
+        if float(f["t"]) < t_from or "plan_obstacles" not in f:
+            continue
+        ox, oy, _, _ = obstacle_state(o, float(f["t"]))
+        kinds = str(f.get("plan_kinds", ""))
+        hit = sorted({kinds[i] if i < len(kinds) else "?" for i, (x, y, r) in enumerate(f["plan_obstacles"])
+                      if math.hypot(x - ox, y - oy) < float(r) + float(o["radius"])})
+        n += 1
+        covered += bool(hit)
+        last_kinds = "".join(hit)
+    return None if n == 0 else {"frames": n, "covered": covered, "last_kinds": last_kinds}
 
 
 def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float = 0.05, turn_radps: float = 0.05,
@@ -143,6 +167,7 @@ def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float
         "clearance_m": clr, "bearing_deg": math.degrees(bearing), "in_view": in_view,
         "seen_s_before": None if last_view is None else t_end - last_view,
         "tracked_s_before": None if last_track_t is None else t_end - last_track_t,
+        "planned": planned_cover(frames, o, t_end - ground_window_s),
         "track": None if last_track is None else {
             "id": last_track.get("id"), "confirmed": bool(last_track.get("confirmed")),
             "mover": bool(last_track.get("mover")), "speed_mps": math.hypot(*last_track["v"])},
