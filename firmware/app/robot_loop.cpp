@@ -96,6 +96,8 @@ StageStat stat_of(std::vector<double> v) {
 // [loop] near_track_moving: what a near-track circle (a confirmed track without static support that
 // fails the moving test) gives the planner besides or instead of a static circle (session 28).
 enum class NearTrack { kStatic, kMoving, kBoth, kFan, kGrow };
+// [loop] near_track_overlap: what becomes of a near-track circle that overlaps the robot's disc (session 41).
+enum class NearTrackOverlap { kDrop, kKeep, kKeepUnsupported };
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s, moving_window_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
@@ -106,8 +108,9 @@ struct LoopParams {
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
-      silhouette_centres, ray_centres, near_track_keep_overlapping;
+      silhouette_centres, ray_centres;
   NearTrack near_track_moving;
+  NearTrackOverlap near_track_overlap;
 };
 LoopParams loop_params_from(const ConfigValues& v) {
   LoopParams p;
@@ -147,7 +150,10 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.meas_sigma_floor_m = v.num("loop.meas_sigma_floor_m");
   p.edge_meas_sigma_scale = v.num("loop.edge_meas_sigma_scale");
   p.silhouette_centres = v.flag("loop.silhouette_centres");
-  p.near_track_keep_overlapping = v.flag("loop.near_track_keep_overlapping");
+  const std::string nto = v.str("loop.near_track_overlap");
+  p.near_track_overlap = nto == "keep" ? NearTrackOverlap::kKeep
+                         : nto == "keep_unsupported" ? NearTrackOverlap::kKeepUnsupported
+                                                     : NearTrackOverlap::kDrop;
   p.ray_centres = v.flag("loop.ray_centres");
   p.seen_max_age_s = v.num("loop.seen_max_age_s");
   p.static_meas_age_s = v.num("loop.static_meas_age_s");
@@ -990,11 +996,15 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          // near_track_keep_overlapping (session 41): keep it even then — the planner's escape rule
-          // ([planner] escape_inside_margin) lets the robot only move away from a static circle it is
-          // already inside, which is what a mover beside the robot calls for.
+          // near_track_overlap (session 41): "keep" keeps it even then, "keep_unsupported" only for a
+          // track without static support (a static obstacle's track has its map cells; kept, its
+          // circle held robots off gaps) — the planner's escape rule ([planner] escape_inside_margin)
+          // lets the robot only move away from a static circle it is already inside, which is what a
+          // mover beside the robot calls for.
+          const bool keep_overlap = lp.near_track_overlap == NearTrackOverlap::kKeep ||
+                                    (lp.near_track_overlap == NearTrackOverlap::kKeepUnsupported && !supported);
           if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              (lp.near_track_keep_overlapping || dist > tr.radius_m + I.rp.radius_m)) {
+              (keep_overlap || dist > tr.radius_m + I.rp.radius_m)) {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
             // of where it is (the tracks that follow a turned mover but fail the direction test).
