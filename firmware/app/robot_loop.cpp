@@ -96,8 +96,7 @@ StageStat stat_of(std::vector<double> v) {
 // [loop] near_track_moving: what a near-track circle (a confirmed track without static support that
 // fails the moving test) gives the planner besides or instead of a static circle (session 28).
 enum class NearTrack { kStatic, kMoving, kBoth, kFan, kGrow };
-// [loop] near_track_overlap: what becomes of a near-track circle that overlaps the robot's disc (session 41).
-enum class NearTrackOverlap { kDrop, kKeep, kKeepUnsupported };
+using robot::NearTrackOverlap;
 struct LoopParams {
   double map_range_m, track_max_width_m, moving_speed_mps, moving_max_age_s, plan_radius_m, moving_min_travel_m, moving_window_s, moving_window_travel_m,
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
@@ -996,15 +995,11 @@ LoopResult RobotLoop::run() {
           // contact — and would leave the planner no arc: seed 9 robots stood still for a minute
           // beside static obstacles' tracks).
           const double dist = robot::norm(tr.pos() - pose.pos());
-          // near_track_overlap (session 41): "keep" keeps it even then, "keep_unsupported" only for a
-          // track without static support (a static obstacle's track has its map cells; kept, its
-          // circle held robots off gaps) — the planner's escape rule ([planner] escape_inside_margin)
-          // lets the robot only move away from a static circle it is already inside, which is what a
-          // mover beside the robot calls for.
-          const bool keep_overlap = lp.near_track_overlap == NearTrackOverlap::kKeep ||
-                                    (lp.near_track_overlap == NearTrackOverlap::kKeepUnsupported && !supported);
-          if (age_s <= lp.near_track_max_age_s && dist <= lp.near_track_m && robot::norm(o.vel) >= lp.moving_speed_mps &&
-              (keep_overlap || dist > tr.radius_m + I.rp.radius_m)) {
+          // [loop] near_track_overlap (session 41) keeps such an estimate after all ("keep"), or only for
+          // a track without static support ("keep_unsupported"): robot::near_track_circle.
+          const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps,
+                                               lp.near_track_overlap};
+          if (robot::near_track_circle(near_rule, age_s, dist, robot::norm(o.vel), tr.radius_m, I.rp.radius_m, supported)) {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
             // of where it is (the tracks that follow a turned mover but fail the direction test).

@@ -23,4 +23,12 @@ bool stuck_drops_track_circle(bool stuck, bool keep_unseen, const Pose2D& robot,
   return std::fabs(bearing_of(robot, track_pos)) < half_fov_rad;
 }
 
+bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, double speed_mps, double track_r,
+                       double robot_r, bool static_support) {
+  if (age_s > rule.max_age_s || dist_m > rule.near_m || speed_mps < rule.min_speed_mps) return false;
+  if (dist_m > track_r + robot_r) return true;  // clear of the robot's disc
+  return rule.overlap == NearTrackOverlap::kKeep ||
+         (rule.overlap == NearTrackOverlap::kKeepUnsupported && !static_support);
+}
+
 }  // namespace fs::robot

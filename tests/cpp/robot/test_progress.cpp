@@ -73,5 +73,30 @@ TEST(Progress, StuckDropsCirclesOnlyInViewWithKeepUnseen) {
   EXPECT_FALSE(stuck_drops_track_circle(true, true, west, {-1.0, -2.0}, half_fov));
 }
 
+TEST(Progress, NearTrackCircleOverlappingTheRobotFollowsTheOverlapRule) {
+  // docs/robot.md "Session 41": robot radius 0.15 m, a track of radius 0.2 m. Clear of the robot's
+  // disc (0.5 m > 0.35 m) the circle is given whatever the rule; overlapping (0.3 m) it is dropped,
+  // kept, or kept only without static support.
+  const double rr = 0.15, tr = 0.2;
+  for (auto mode : {NearTrackOverlap::kDrop, NearTrackOverlap::kKeep, NearTrackOverlap::kKeepUnsupported}) {
+    const NearTrackRule rule{1.0, 1.5, 0.04, mode};
+    EXPECT_TRUE(near_track_circle(rule, 0.2, 0.5, 0.3, tr, rr, false));
+    EXPECT_TRUE(near_track_circle(rule, 0.2, 0.5, 0.3, tr, rr, true));
+    // the other conditions hold for every rule: too old, too far, too slow
+    EXPECT_FALSE(near_track_circle(rule, 1.2, 0.5, 0.3, tr, rr, false));
+    EXPECT_FALSE(near_track_circle(rule, 0.2, 1.6, 0.3, tr, rr, false));
+    EXPECT_FALSE(near_track_circle(rule, 0.2, 0.5, 0.03, tr, rr, false));
+    EXPECT_FALSE(near_track_circle(rule, 1.2, 0.3, 0.3, tr, rr, false));
+  }
+  const NearTrackRule drop{1.0, 1.5, 0.04, NearTrackOverlap::kDrop}, keep{1.0, 1.5, 0.04, NearTrackOverlap::kKeep},
+      unsup{1.0, 1.5, 0.04, NearTrackOverlap::kKeepUnsupported};
+  EXPECT_FALSE(near_track_circle(drop, 0.2, 0.3, 0.3, tr, rr, false));
+  EXPECT_FALSE(near_track_circle(drop, 0.2, 0.35, 0.3, tr, rr, false));  // touching counts as overlapping
+  EXPECT_TRUE(near_track_circle(keep, 0.2, 0.3, 0.3, tr, rr, false));
+  EXPECT_TRUE(near_track_circle(keep, 0.2, 0.3, 0.3, tr, rr, true));
+  EXPECT_TRUE(near_track_circle(unsup, 0.2, 0.3, 0.3, tr, rr, false));
+  EXPECT_FALSE(near_track_circle(unsup, 0.2, 0.3, 0.3, tr, rr, true));
+}
+
 }  // namespace
 }  // namespace fs::robot

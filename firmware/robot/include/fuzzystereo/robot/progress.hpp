@@ -43,4 +43,21 @@ class ProgressMonitor {
 // robots turning into such movers).
 bool stuck_drops_track_circle(bool stuck, bool keep_unseen, const Pose2D& robot, Vec2 track_pos, double half_fov_rad);
 
+// The near-track safety net (docs/robot.md "Closed-loop suite", "Session 41"): a confirmed track that
+// fails the loop's moving test goes to the planner as a static circle where it is predicted now when it
+// was measured within max_age_s ([loop] near_track_max_age_s), lies within near_m of the robot
+// (near_track_m) and moves at least min_speed_mps (moving_speed_mps: a static obstacle's track coincides
+// with its map cells). A circle that overlaps the robot's disc (centre distance <= track + robot radius)
+// is dropped with kDrop (an estimate inside the robot taken to be wrong), kept with kKeep, and kept only
+// for a track without static support with kKeepUnsupported (a static obstacle's ghost track beside a
+// gap, kept, holds the robot off the gap; a mover's track beside the robot has none). A kept overlapping
+// circle leaves the robot only the arcs that move away from it ([planner] escape_inside_margin).
+enum class NearTrackOverlap { kDrop, kKeep, kKeepUnsupported };
+struct NearTrackRule {
+  double max_age_s = 1.0, near_m = 1.5, min_speed_mps = 0.04;
+  NearTrackOverlap overlap = NearTrackOverlap::kDrop;
+};
+bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, double speed_mps, double track_r,
+                       double robot_r, bool static_support);
+
 }  // namespace fs::robot
