@@ -6,6 +6,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -929,6 +930,7 @@ LoopResult RobotLoop::run() {
         kinds.push_back('b');
       }
     }
+    std::map<int, const char*> moving_verdict;  // confirmed tracks' moving-test verdicts, for the record
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -948,10 +950,13 @@ LoopResult RobotLoop::run() {
         // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
         const bool supported = static_support(tr);
         if (supported && !lp.static_track_keep_circles) continue;
-        const auto moving = [&] {
-          if (supported) return false;
-          if (tr.hits < lp.moving_min_hits || robot::norm(o.vel) < lp.moving_speed_mps || age_s > lp.moving_max_age_s)
-            return false;
+        // The moving test; its verdict (the first condition that failed, or "mover") is logged per
+        // track in the run record (`tracks[].moving_test`, session 41).
+        const auto moving = [&]() -> const char* {
+          if (supported) return "static support";
+          if (tr.hits < lp.moving_min_hits) return "few hits";
+          if (robot::norm(o.vel) < lp.moving_speed_mps) return "slow";
+          if (age_s > lp.moving_max_age_s) return "old";
           // Has it really travelled? A static obstacle's track jitters (fragments, depth noise) and
           // its filtered velocity can read 0.05-1 m/s, but its measurements stay where they started.
           // A moving track must have gone moving_min_travel_m from its first measurement, at an
@@ -961,13 +966,13 @@ LoopResult RobotLoop::run() {
           const Vec2 travel = tr.last_meas_p - tr.first_meas_p;
           const double dist = robot::norm(travel);
           const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
-          if (dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return false;
+          if (dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return "short travel";
           // moving_travel_sigmas: the travel must also exceed what the depth noise of its two end
           // measurements explains (sigma grows with Z^2: 0.25 m at 4 m for the suite's camera, so a
           // fixed 0.3 m lets a far static obstacle's noise "travel").
           if (lp.moving_travel_sigmas > 0 &&
               dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
-            return false;
+            return "travel within noise";
           // moving_window_s: the direction is checked against the travel over the last
           // moving_window_s of measurements (when that is at least moving_window_travel_m), so a
           // mover that turned (or a track that took over a mover's measurements) is judged on where
@@ -975,11 +980,14 @@ LoopResult RobotLoop::run() {
           if (lp.moving_window_s > 0) {
             const Vec2 recent = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
             const double rd = robot::norm(recent);
-            if (rd >= lp.moving_window_travel_m) return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel);
+            if (rd >= lp.moving_window_travel_m)
+              return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel) ? "mover" : "direction";
           }
-          return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel);
+          return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel) ? "mover" : "direction";
         };
-        const bool is_mover = moving();
+        const char* verdict = moving();
+        moving_verdict[tr.id] = verdict;
+        const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
         // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
         if (!is_mover && robot::stuck_drops_track_circle(stuck, lp.stuck_keep_unseen, pose, tr.pos(), half_fov - 0.05)) continue;
@@ -1354,7 +1362,7 @@ LoopResult RobotLoop::run() {
                       {"pixels", o.pixel_count}});
     fj["detections"] = std::move(dets);
     json trs = json::array();
-    for (const auto& tr : tracker.tracks())
+    for (const auto& tr : tracker.tracks()) {
       trs.push_back({{"id", tr.id},
                      {"p", {tr.pos().x, tr.pos().y}},
                      {"v", {tr.vel().x, tr.vel().y}},
@@ -1366,6 +1374,8 @@ LoopResult RobotLoop::run() {
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
                      {"support", support_cells(tr)},
                      {"mover", tr.mover}});
+      if (const auto it = moving_verdict.find(tr.id); it != moving_verdict.end()) trs.back()["moving_test"] = it->second;
+    }
     fj["tracks"] = std::move(trs);
     if (!static_meas_p.empty()) {
       json sj = json::array();

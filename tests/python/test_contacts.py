@@ -144,8 +144,11 @@ def test_planned_tells_whether_the_planner_had_the_obstacle(tmp_path: Path) -> N
             f["plan_obstacles"], f["plan_kinds"] = [[x + 0.1, y, 0.2], [5.0, 5.0, 0.03]], "nm"
         else:
             f["plan_obstacles"], f["plan_kinds"] = [[5.0, 5.0, 0.03]], "m"
+        for tr in f["tracks"]:
+            tr["moving_test"] = "direction"  # the loop's verdict on the track (session 41 records)
     (d / "frames.jsonl").write_text("\n".join(json.dumps(f) for f in frames) + "\n")
-    p = trace_contact(d)["planned"]
-    assert p == {"frames": 5, "covered": 2, "last_kinds": ""}
+    c = trace_contact(d)
+    assert c["planned"] == {"frames": 5, "covered": 2, "last_kinds": ""}
+    assert c["track"]["moving_test"] == "direction"
     # the CLI shows it
     assert main(["contacts", str(d)]) in (0, None)

@@ -35,7 +35,7 @@ def test_mission_reaches_goal_without_collision(firmware_bin, common_dir, tmp_pa
     assert max(f["map_cells"] for f in frames) > 0
 
 
-def test_plan_every_sets_which_frames_record_the_planners_obstacles(firmware_bin, common_dir, tmp_path):
+def test_plan_every_sets_which_frames_record_the_planners_obstacles_and_tracks_carry_the_moving_test(firmware_bin, common_dir, tmp_path):
     # The record keeps the planner's obstacles on every 10th frame by default; --plan-every N on every
     # Nth (1 for tracing contacts with `fuzzyctl contacts`, docs/robot.md "Session 41"); 0 is refused.
     rec = tmp_path / "rec"
@@ -46,6 +46,11 @@ def test_plan_every_sets_which_frames_record_the_planners_obstacles(firmware_bin
     assert len(frames) == 12
     assert [f["frame"] for f in frames if "plan_obstacles" in f] == [0, 3, 6, 9]
     assert all(len(f["plan_kinds"]) == len(f["plan_obstacles"]) for f in frames if "plan_obstacles" in f)
+    # every confirmed track carries the loop's moving-test verdict, and only confirmed ones
+    tracks = [t for f in frames for t in f["tracks"]]
+    assert any(t["confirmed"] for t in tracks)
+    verdicts = {"mover", "static support", "few hits", "slow", "old", "short travel", "travel within noise", "direction"}
+    assert all((t.get("moving_test") in verdicts) if t["confirmed"] else "moving_test" not in t for t in tracks)
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
             "--max-frames", "2", "--plan-every", "0")
     assert p.returncode != 0 and "--plan-every" in p.stderr

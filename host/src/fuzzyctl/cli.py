@@ -768,7 +768,8 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
                   opt(c.get("bearing_deg"), "+.0f"), f"{c['robot_speed_mps']:.2f}, {c['robot_turn_radps']:+.2f}",
                   opt(c.get("seen_s_before"), ".1f"), opt(c.get("tracked_s_before"), ".1f"),
                   "-" if tr is None else f"#{tr['id']} {'C' if tr['confirmed'] else 'u'}{'M' if tr['mover'] else ''} "
-                                         f"{tr['speed_mps']:.2f} m/s",
+                                         f"{tr['speed_mps']:.2f} m/s"
+                                         + (f", {tr['moving_test']}" if tr.get("moving_test") else ""),
                   _planned(c.get("planned")),
                   opt(c.get("ground_ahead_min_pct"), ".0f"))
     console.print(t)

@@ -14,7 +14,8 @@ solid movers with their turns, :func:`fuzzyctl.simworld.obstacle_state`):
 - what the robot **did**: moving (|commanded linear| >= ``moving_mps``), and whether it was turning
   towards the obstacle's side (angular command of the bearing's sign, above ``turn_radps``);
 - what it **knew**: when the obstacle was last inside the view (within ``view_range_m``), when a
-  track was last within ``track_match_m`` of it, and that track's flags (confirmed, mover) and speed;
+  track was last within ``track_match_m`` of it, and that track's flags (confirmed, mover), speed and
+  moving-test verdict (``moving_test``: "mover", or the first condition that failed, e.g. "direction");
 - what it **planned with**: in the frames of the last ``ground_window_s`` that carry the planner's
   obstacles (``plan_obstacles``, ``plan_kinds``: every 10th frame by default, every frame with
   ``--plan-every 1``), how many had a planner disc overlapping the obstacle's true disc, and the kinds
@@ -170,7 +171,9 @@ def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float
         "planned": planned_cover(frames, o, t_end - ground_window_s),
         "track": None if last_track is None else {
             "id": last_track.get("id"), "confirmed": bool(last_track.get("confirmed")),
-            "mover": bool(last_track.get("mover")), "speed_mps": math.hypot(*last_track["v"])},
+            "mover": bool(last_track.get("mover")), "speed_mps": math.hypot(*last_track["v"]),
+            # the loop's moving-test verdict (records from session 41 on): "mover" or the condition that failed
+            "moving_test": last_track.get("moving_test")},
     })
     return out
 
