@@ -103,7 +103,7 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m;
+      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
   bool stuck_keep_unseen, body_fit;
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
@@ -119,6 +119,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.moving_speed_mps = v.num("loop.moving_speed_mps");
   p.moving_window_s = v.num("loop.moving_window_s");
   p.moving_window_travel_m = v.num("loop.moving_window_travel_m");
+  p.moving_direction_near_m = v.num("loop.moving_direction_near_m");
   p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
@@ -973,6 +974,10 @@ LoopResult RobotLoop::run() {
           if (lp.moving_travel_sigmas > 0 &&
               dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
             return "travel within noise";
+          // moving_direction_near_m (session 41): within this distance of the robot the direction check is
+          // skipped — near the robot it turned away more movers' tracks than static obstacles' (seed 131).
+          if (lp.moving_direction_near_m > 0 && robot::norm(tr.pos() - pose.pos()) <= lp.moving_direction_near_m)
+            return "mover";
           // moving_window_s: the direction is checked against the travel over the last
           // moving_window_s of measurements (when that is at least moving_window_travel_m), so a
           // mover that turned (or a track that took over a mover's measurements) is judged on where
