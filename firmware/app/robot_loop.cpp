@@ -932,6 +932,9 @@ LoopResult RobotLoop::run() {
       }
     }
     std::map<int, const char*> moving_verdict;  // confirmed tracks' moving-test verdicts, for the record
+    const robot::MovingTestParams moving_params{lp.moving_min_hits,      lp.moving_speed_mps,   lp.moving_max_age_s,
+                                                lp.moving_min_travel_m,  lp.moving_travel_sigmas, lp.moving_window_s,
+                                                lp.moving_window_travel_m, lp.moving_direction_near_m};
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -951,44 +954,26 @@ LoopResult RobotLoop::run() {
         // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
         const bool supported = static_support(tr);
         if (supported && !lp.static_track_keep_circles) continue;
-        // The moving test; its verdict (the first condition that failed, or "mover") is logged per
-        // track in the run record (`tracks[].moving_test`, session 41).
+        // The moving test (robot::moving_test); its verdict (the first condition that failed, or
+        // "mover") is logged per track in the run record (`tracks[].moving_test`, session 41). Why each
+        // condition: a static obstacle's track jitters (fragments, depth noise) and its filtered velocity
+        // can read 0.05-1 m/s, but its measurements stay where they started, so a moving track must have
+        // travelled (before this, suite seed 7: every sampled front stop came from such a static "moving"
+        // track), beyond what the depth noise of its end measurements explains (sigma grows with Z^2),
+        // in the direction of its velocity — over the last moving_window_s if set (a mover that turned
+        // is judged on where it goes now), and not within moving_direction_near_m of the robot.
         const auto moving = [&]() -> const char* {
-          if (supported) return "static support";
-          if (tr.hits < lp.moving_min_hits) return "few hits";
-          if (robot::norm(o.vel) < lp.moving_speed_mps) return "slow";
-          if (age_s > lp.moving_max_age_s) return "old";
-          // Has it really travelled? A static obstacle's track jitters (fragments, depth noise) and
-          // its filtered velocity can read 0.05-1 m/s, but its measurements stay where they started.
-          // A moving track must have gone moving_min_travel_m from its first measurement, at an
-          // average speed of at least moving_speed_mps, in the direction of its velocity estimate.
-          // (Before this test, suite seed 7: every sampled front stop came from such a static
-          // "moving" track.)
-          const Vec2 travel = tr.last_meas_p - tr.first_meas_p;
-          const double dist = robot::norm(travel);
-          const double life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
-          if (dist < lp.moving_min_travel_m || dist < lp.moving_speed_mps * life_s) return "short travel";
-          // moving_travel_sigmas: the travel must also exceed what the depth noise of its two end
-          // measurements explains (sigma grows with Z^2: 0.25 m at 4 m for the suite's camera, so a
-          // fixed 0.3 m lets a far static obstacle's noise "travel").
-          if (lp.moving_travel_sigmas > 0 &&
-              dist < lp.moving_travel_sigmas * std::sqrt(tr.first_meas_var + tr.last_meas_var))
-            return "travel within noise";
-          // moving_direction_near_m (session 41): within this distance of the robot the direction check is
-          // skipped — near the robot it turned away more movers' tracks than static obstacles' (seed 131).
-          if (lp.moving_direction_near_m > 0 && robot::norm(tr.pos() - pose.pos()) <= lp.moving_direction_near_m)
-            return "mover";
-          // moving_window_s: the direction is checked against the travel over the last
-          // moving_window_s of measurements (when that is at least moving_window_travel_m), so a
-          // mover that turned (or a track that took over a mover's measurements) is judged on where
-          // it goes now.
-          if (lp.moving_window_s > 0) {
-            const Vec2 recent = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
-            const double rd = robot::norm(recent);
-            if (rd >= lp.moving_window_travel_m)
-              return recent.x * o.vel.x + recent.y * o.vel.y >= 0.7 * rd * robot::norm(o.vel) ? "mover" : "direction";
-          }
-          return travel.x * o.vel.x + travel.y * o.vel.y >= 0.7 * dist * robot::norm(o.vel) ? "mover" : "direction";
+          robot::MovingTestInput in;
+          in.static_support = supported;
+          in.hits = tr.hits;
+          in.vel = o.vel;
+          in.age_s = age_s;
+          in.travel = tr.last_meas_p - tr.first_meas_p;
+          in.life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
+          in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
+          if (lp.moving_window_s > 0) in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
+          in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
+          return robot::moving_test(moving_params, in);
         };
         const char* verdict = moving();
         moving_verdict[tr.id] = verdict;

@@ -31,4 +31,22 @@ bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, d
          (rule.overlap == NearTrackOverlap::kKeepUnsupported && !static_support);
 }
 
+const char* moving_test(const MovingTestParams& p, const MovingTestInput& in) {
+  if (in.static_support) return "static support";
+  if (in.hits < p.min_hits) return "few hits";
+  const double speed = norm(in.vel);
+  if (speed < p.min_speed_mps) return "slow";
+  if (in.age_s > p.max_age_s) return "old";
+  const double dist = norm(in.travel);
+  if (dist < p.min_travel_m || dist < p.min_speed_mps * in.life_s) return "short travel";
+  if (p.travel_sigmas > 0 && dist < p.travel_sigmas * std::sqrt(in.end_var_m2)) return "travel within noise";
+  if (p.direction_near_m > 0 && in.robot_dist_m <= p.direction_near_m) return "mover";
+  if (p.window_s > 0) {
+    const double rd = norm(in.recent_travel);
+    if (rd >= p.window_travel_m)
+      return in.recent_travel.x * in.vel.x + in.recent_travel.y * in.vel.y >= 0.7 * rd * speed ? "mover" : "direction";
+  }
+  return in.travel.x * in.vel.x + in.travel.y * in.vel.y >= 0.7 * dist * speed ? "mover" : "direction";
+}
+
 }  // namespace fs::robot

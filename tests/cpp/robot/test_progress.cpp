@@ -98,5 +98,56 @@ TEST(Progress, NearTrackCircleOverlappingTheRobotFollowsTheOverlapRule) {
   EXPECT_FALSE(near_track_circle(unsup, 0.2, 0.3, 0.3, tr, rr, true));
 }
 
+TEST(Progress, MovingTestVerdictsInOrderAndTheDirectionCheckNearTheRobot) {
+  // A track that passes every condition: 6 hits, 0.3 m/s along +x, measured now, travelled 1 m along +x in 4 s.
+  MovingTestParams p;  // min_hits 4, 0.04 m/s, 8 s, 0.3 m, no sigmas, no window, direction checked everywhere
+  MovingTestInput in;
+  in.hits = 6, in.vel = {0.3, 0.0}, in.age_s = 0.0, in.travel = {1.0, 0.0}, in.life_s = 4.0, in.robot_dist_m = 1.0;
+  EXPECT_STREQ(moving_test(p, in), "mover");
+  // each condition on its own, and the first one failing is the one named
+  MovingTestInput t = in;
+  t.static_support = true, t.hits = 1;
+  EXPECT_STREQ(moving_test(p, t), "static support");
+  t = in, t.hits = 3;
+  EXPECT_STREQ(moving_test(p, t), "few hits");
+  t = in, t.vel = {0.03, 0.0};
+  EXPECT_STREQ(moving_test(p, t), "slow");
+  t = in, t.age_s = 9.0;
+  EXPECT_STREQ(moving_test(p, t), "old");
+  t = in, t.travel = {0.25, 0.0};
+  EXPECT_STREQ(moving_test(p, t), "short travel");
+  t = in, t.life_s = 30.0;  // 1 m in 30 s: below 0.04 m/s on average
+  EXPECT_STREQ(moving_test(p, t), "short travel");
+  MovingTestParams ps = p;
+  ps.travel_sigmas = 3.0;
+  t = in, t.end_var_m2 = 0.25;  // std 0.5 m: 3 sigma = 1.5 m > 1 m travelled
+  EXPECT_STREQ(moving_test(ps, t), "travel within noise");
+  // the direction: velocity 60 deg off the whole-life travel (cos 0.5 < 0.7) fails; 40 deg (cos 0.77) passes
+  t = in, t.vel = {0.15, 0.26};
+  EXPECT_STREQ(moving_test(p, t), "direction");
+  t = in, t.vel = {0.23, 0.193};
+  EXPECT_STREQ(moving_test(p, t), "mover");
+  // ... judged on the recent travel with a window (the mover turned): the same velocity passes
+  MovingTestParams pw = p;
+  pw.window_s = 3.0;
+  t = in, t.vel = {0.0, 0.3}, t.recent_travel = {0.05, 0.6};
+  EXPECT_STREQ(moving_test(p, t), "direction");
+  EXPECT_STREQ(moving_test(pw, t), "mover");
+  t.recent_travel = {0.05, 0.05};  // recent travel below window_travel_m: the whole-life travel decides
+  EXPECT_STREQ(moving_test(pw, t), "direction");
+  // direction_near_m (session 41): within it the direction check is skipped, the other conditions stay
+  MovingTestParams pn = p;
+  pn.direction_near_m = 1.5;
+  t = in, t.vel = {0.0, 0.3}, t.robot_dist_m = 1.2;
+  EXPECT_STREQ(moving_test(p, t), "direction");
+  EXPECT_STREQ(moving_test(pn, t), "mover");
+  t.robot_dist_m = 1.6;
+  EXPECT_STREQ(moving_test(pn, t), "direction");
+  t.robot_dist_m = 1.2, t.travel = {0.2, 0.0};
+  EXPECT_STREQ(moving_test(pn, t), "short travel");
+  t = in, t.robot_dist_m = 0.5, t.static_support = true;
+  EXPECT_STREQ(moving_test(pn, t), "static support");
+}
+
 }  // namespace
 }  // namespace fs::robot

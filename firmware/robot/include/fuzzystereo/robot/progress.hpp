@@ -60,4 +60,34 @@ struct NearTrackRule {
 bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, double speed_mps, double track_r,
                        double robot_r, bool static_support);
 
+// The loop's moving test (docs/robot.md "Closed-loop suite", sessions 9, 27, 41): does a confirmed track
+// go to the planner as a mover (predicted with its velocity)? Returns "mover", or the first condition that
+// failed — logged per track in the run record (`tracks[].moving_test`):
+//   "static support"       the map held its place before the track (a static obstacle's track);
+//   "few hits", "slow", "old"   fewer than min_hits measurements, speed below min_speed_mps, last measured
+//                          more than max_age_s ago;
+//   "short travel"         its measurements moved less than min_travel_m from the first one, or less than
+//                          min_speed_mps x its life;
+//   "travel within noise"  (travel_sigmas > 0) less than travel_sigmas x the two end measurements' std;
+//   "direction"            its velocity is more than ~45 deg (cos < 0.7) off its travel — the whole-life
+//                          travel, or with window_s > 0 the travel over the last window_s when that is at
+//                          least window_travel_m; skipped within direction_near_m of the robot (session 41).
+struct MovingTestParams {
+  int min_hits = 4;
+  double min_speed_mps = 0.04, max_age_s = 8.0, min_travel_m = 0.3, travel_sigmas = 0.0, window_s = 0.0,
+         window_travel_m = 0.1, direction_near_m = 0.0;
+};
+struct MovingTestInput {
+  bool static_support = false;
+  int hits = 0;
+  Vec2 vel{};                  // filtered velocity
+  double age_s = 0.0;          // since the last measurement
+  Vec2 travel{};               // last measured position - first
+  double life_s = 0.0;         // last measurement's time - first's
+  double end_var_m2 = 0.0;     // first + last measurement's position variance
+  Vec2 recent_travel{};        // last measured position - the one window_s before (used with window_s > 0)
+  double robot_dist_m = 0.0;   // from the track's estimate to the robot
+};
+const char* moving_test(const MovingTestParams& p, const MovingTestInput& in);
+
 }  // namespace fs::robot
