@@ -468,6 +468,13 @@ LoopResult RobotLoop::run() {
   const DetectInput det_input = detect_input_from(I.cfg.values);
   const Matcher matcher(detection_matcher_params(I.cfg.matcher, I.cfg.values), load_fis_definition(""));
   const LoopParams lp = loop_params_from(I.cfg.values);
+  // The moving test's and the near-track safety net's settings (robot::moving_test, robot::near_track_circle).
+  const robot::MovingTestParams moving_params{lp.moving_min_hits,        lp.moving_speed_mps,     lp.moving_max_age_s,
+                                              lp.moving_min_travel_m,    lp.moving_travel_sigmas, lp.moving_window_s,
+                                              lp.moving_window_travel_m, lp.moving_direction_near_m};
+  const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps, lp.near_track_overlap};
+  // This frame's moving-test verdicts of the confirmed tracks (id, verdict), for the record.
+  std::vector<std::pair<int, const char*>> moving_verdict;
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
   robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks, look_before_turn_m)
@@ -931,10 +938,7 @@ LoopResult RobotLoop::run() {
         kinds.push_back('b');
       }
     }
-    std::map<int, const char*> moving_verdict;  // confirmed tracks' moving-test verdicts, for the record
-    const robot::MovingTestParams moving_params{lp.moving_min_hits,      lp.moving_speed_mps,   lp.moving_max_age_s,
-                                                lp.moving_min_travel_m,  lp.moving_travel_sigmas, lp.moving_window_s,
-                                                lp.moving_window_travel_m, lp.moving_direction_near_m};
+    moving_verdict.clear();
     {
       const auto tracked = tracker.obstacles(false, I.pp.uncertainty_sigmas, I.pp.uncertainty_max_m);
       const auto& trs = tracker.tracks();
@@ -962,21 +966,18 @@ LoopResult RobotLoop::run() {
         // track), beyond what the depth noise of its end measurements explains (sigma grows with Z^2),
         // in the direction of its velocity — over the last moving_window_s if set (a mover that turned
         // is judged on where it goes now), and not within moving_direction_near_m of the robot.
-        const auto moving = [&]() -> const char* {
-          robot::MovingTestInput in;
-          in.static_support = supported;
-          in.hits = tr.hits;
-          in.vel = o.vel;
-          in.age_s = age_s;
-          in.travel = tr.last_meas_p - tr.first_meas_p;
-          in.life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
-          in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
-          if (lp.moving_window_s > 0) in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
-          in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
-          return robot::moving_test(moving_params, in);
-        };
-        const char* verdict = moving();
-        moving_verdict[tr.id] = verdict;
+        robot::MovingTestInput mt_in;
+        mt_in.static_support = supported;
+        mt_in.hits = tr.hits;
+        mt_in.vel = o.vel;
+        mt_in.age_s = age_s;
+        mt_in.travel = tr.last_meas_p - tr.first_meas_p;
+        mt_in.life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
+        mt_in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
+        if (lp.moving_window_s > 0) mt_in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
+        mt_in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
+        const char* verdict = robot::moving_test(moving_params, mt_in);
+        moving_verdict.emplace_back(tr.id, verdict);
         const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
         // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
@@ -995,8 +996,6 @@ LoopResult RobotLoop::run() {
           const double dist = robot::norm(tr.pos() - pose.pos());
           // [loop] near_track_overlap (session 41) keeps such an estimate after all ("keep"), or only for
           // a track without static support ("keep_unsupported"): robot::near_track_circle.
-          const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps,
-                                               lp.near_track_overlap};
           if (robot::near_track_circle(near_rule, age_s, dist, robot::norm(o.vel), tr.radius_m, I.rp.radius_m, supported)) {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
@@ -1364,7 +1363,8 @@ LoopResult RobotLoop::run() {
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
                      {"support", support_cells(tr)},
                      {"mover", tr.mover}});
-      if (const auto it = moving_verdict.find(tr.id); it != moving_verdict.end()) trs.back()["moving_test"] = it->second;
+      for (const auto& [id, verdict] : moving_verdict)
+        if (id == tr.id) trs.back()["moving_test"] = verdict;
     }
     fj["tracks"] = std::move(trs);
     if (!static_meas_p.empty()) {
