@@ -49,7 +49,7 @@ def test_plan_every_sets_which_frames_record_the_planners_obstacles_and_tracks_c
     # every confirmed track carries the loop's moving-test verdict, and only confirmed ones
     tracks = [t for f in frames for t in f["tracks"]]
     assert any(t["confirmed"] for t in tracks)
-    verdicts = {"mover", "static support", "few hits", "slow", "old", "short travel", "travel within noise", "direction"}
+    verdicts = {"mover", "static measurement", "static support", "few hits", "slow", "old", "short travel", "travel within noise", "direction"}
     assert all((t.get("moving_test") in verdicts) if t["confirmed"] else "moving_test" not in t for t in tracks)
     p = run(firmware_bin, "run", "--source", f"sim:{common_dir / 'sim/scenes/mission.toml'}", "--quiet",
             "--max-frames", "2", "--plan-every", "0")

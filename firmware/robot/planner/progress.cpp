@@ -32,6 +32,7 @@ bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, d
 }
 
 const char* moving_test(const MovingTestParams& p, const MovingTestInput& in) {
+  if (in.static_measurement) return "static measurement";
   if (in.static_support) return "static support";
   if (in.hits < p.min_hits) return "few hits";
   const double speed = norm(in.vel);

@@ -108,6 +108,8 @@ TEST(Progress, MovingTestVerdictsInOrderAndTheDirectionCheckNearTheRobot) {
   MovingTestInput t = in;
   t.static_support = true, t.hits = 1;
   EXPECT_STREQ(moving_test(p, t), "static support");
+  t.static_measurement = true;  // the measurement-level reason is named first
+  EXPECT_STREQ(moving_test(p, t), "static measurement");
   t = in, t.hits = 3;
   EXPECT_STREQ(moving_test(p, t), "few hits");
   t = in, t.vel = {0.03, 0.0};

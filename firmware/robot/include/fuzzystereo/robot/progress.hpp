@@ -63,6 +63,8 @@ bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, d
 // The loop's moving test (docs/robot.md "Closed-loop suite", sessions 9, 27, 41): does a confirmed track
 // go to the planner as a mover (predicted with its velocity)? Returns "mover", or the first condition that
 // failed — logged per track in the run record (`tracks[].moving_test`):
+//   "static measurement"   its last measurement's surface points lay on map cells that were occupied before
+//                          ([loop] static_meas_age_s; the track's last_meas_static, session 42 split it out);
 //   "static support"       the map held its place before the track (a static obstacle's track);
 //   "few hits", "slow", "old"   fewer than min_hits measurements, speed below min_speed_mps, last measured
 //                          more than max_age_s ago;
@@ -78,7 +80,8 @@ struct MovingTestParams {
          window_travel_m = 0.1, direction_near_m = 0.0;
 };
 struct MovingTestInput {
-  bool static_support = false;
+  bool static_measurement = false;  // the last measurement was found static (Track::last_meas_static)
+  bool static_support = false;      // robot::has_static_support (or static_measurement)
   int hits = 0;
   Vec2 vel{};                  // filtered velocity
   double age_s = 0.0;          // since the last measurement
