@@ -86,6 +86,8 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.ignore_goal_footprint = v.flag("planner.ignore_goal_footprint");
   p.route_keep_ratio = v.num("planner.route_keep_ratio");
   p.route_keep_extra_m = v.num("planner.route_keep_extra_m");
+  p.shortcut_ratio = v.num("planner.shortcut_ratio");
+  p.shortcut_margin_m = v.num("planner.shortcut_margin_m");
   p.route_keep_offset_m = v.num("planner.route_keep_offset_m");
   p.unseen_check_s = v.num("planner.unseen_check_s");
   p.w_memory = v.num("planner.w_memory");
