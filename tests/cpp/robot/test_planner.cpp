@@ -595,6 +595,38 @@ TEST(Planner, KeepsTheLastRouteWhileItIsFreeAndNotMuchLonger) {
   EXPECT_FALSE(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, obs, {&detour, {}}).route_kept);
 }
 
+// Gap shortcut ([planner] shortcut_ratio, session 42): a post wall across the way with a 0.46 m gap, which the full
+// margin (2 x (0.15 + 0.10) m) closes and radius + 0.05 m leaves open; round the wall's end the route is ~1.7x longer.
+TEST(Planner, GapShortcutTakesTheNarrowerMarginRouteWhenTheDetourIsMuchLonger) {
+  const Vec2 goal{4.0, 0.0};
+  std::vector<CircleObstacle> wall;
+  for (int k = 0; k < 12; ++k) {
+    const double y = 0.33 + 0.2 * k;  // posts r 0.1 touching each other, surfaces at +-0.23 m round the gap
+    wall.push_back({{2.0, y}, 0.1, {}});
+    wall.push_back({{2.0, -y}, 0.1, {}});
+  }
+  auto y_at_wall = [](const PlanOutput& p) {
+    double best = 1e9, y = 0;
+    for (const Vec2& q : p.path)
+      if (std::abs(q.x - 2.0) < best) best = std::abs(q.x - 2.0), y = q.y;
+    return y;
+  };
+  PlannerParams pp = planner();
+  const PlanOutput off = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, wall, {});
+  ASSERT_FALSE(off.path.empty());
+  EXPECT_GT(std::abs(y_at_wall(off)), 2.5);  // round the wall's end
+  EXPECT_FALSE(off.reduced_margin);
+  pp.shortcut_ratio = 1.5;
+  const PlanOutput on = Planner(pp, robot()).plan({0, 0, 0}, {}, goal, wall, {});
+  ASSERT_FALSE(on.path.empty());
+  EXPECT_LT(std::abs(y_at_wall(on)), 0.1);  // through the gap
+  EXPECT_TRUE(on.reduced_margin);
+  pp.shortcut_ratio = 2.0;  // the detour is not 2x longer: kept
+  EXPECT_GT(std::abs(y_at_wall(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, wall, {}))), 2.5);
+  pp.shortcut_ratio = 1.5, pp.shortcut_margin_m = 0.10;  // the shortcut's margin as wide as the full one: no shortcut
+  EXPECT_GT(std::abs(y_at_wall(Planner(pp, robot()).plan({0, 0, 0}, {}, goal, wall, {}))), 2.5);
+}
+
 // Look where you drive: with the goal to the left and nothing seen, no forward arc is admissible
 // and the robot turns on the spot towards it; with everything seen (or the check off) it drives.
 TEST(Planner, DoesNotDriveOntoGroundNotSeenRecently) {
