@@ -611,6 +611,8 @@ TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   const PlannerParams p = planner_params_from(c.values), pd;
   EXPECT_DOUBLE_EQ(p.control_period_s, pd.control_period_s);
   EXPECT_DOUBLE_EQ(p.horizon_s, pd.horizon_s);
+  EXPECT_DOUBLE_EQ(p.shortcut_ratio, pd.shortcut_ratio);
+  EXPECT_DOUBLE_EQ(p.shortcut_margin_m, pd.shortcut_margin_m);
   EXPECT_EQ(watchdog_params_from(c.values).timeout_ns, 200'000'000);
   const MotorParams m = motor_params_from(c.values);
   EXPECT_EQ(m.backend, MotorBackend::kSim);

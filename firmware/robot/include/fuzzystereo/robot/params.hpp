@@ -104,11 +104,11 @@ struct PlannerParams {
                                      // is free and at most this times the new one's length (+ extra);
                                      // 0 = off (a new A* route every frame; docs/robot.md)
   double route_keep_extra_m = 0.0;   // ... plus this much [m]
-  double shortcut_ratio = 0.0;       // gap shortcut (session 42): when the full-margin route exists but is
+  double shortcut_ratio = 1.5;       // gap shortcut (session 42): when the full-margin route exists but is
                                      // longer than this times the route with radius + shortcut_margin_m,
                                      // the latter is taken (a gap the safety margin closes, against a
                                      // detour round the wall's end); 0 = off (the narrower margin is
-                                     // tried only when the full one finds nothing)
+                                     // tried only when the full one finds nothing; before session 42)
   double shortcut_margin_m = 0.05;   // the margin of that route [m], between collision and safety margin
   double route_keep_offset_m = 0.3;  // the robot must be within this of the kept path [m]
   double unseen_check_s = 0.0;       // look where you drive: an arc with v > 0 whose leading point
