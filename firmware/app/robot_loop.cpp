@@ -103,7 +103,7 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m, mover_max_coast_s;
+      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
   bool stuck_keep_unseen, body_fit;
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
@@ -120,7 +120,6 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.moving_window_s = v.num("loop.moving_window_s");
   p.moving_window_travel_m = v.num("loop.moving_window_travel_m");
   p.moving_direction_near_m = v.num("loop.moving_direction_near_m");
-  p.mover_max_coast_s = v.num("loop.mover_max_coast_s");
   p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
@@ -470,11 +469,7 @@ LoopResult RobotLoop::run() {
   const Matcher matcher(detection_matcher_params(I.cfg.matcher, I.cfg.values), load_fis_definition(""));
   const LoopParams lp = loop_params_from(I.cfg.values);
   // The moving test's and the near-track safety net's settings (robot::moving_test, robot::near_track_circle).
-  // [loop] mover_max_coast_s (session 42): a mover's track unmeasured for longer fails the moving test as
-  // "old" and is planned by the rules for other tracks (its reachable set when out of view, the map in view),
-  // not at its coasted prediction; moving_max_age_s still bounds the reachable sets.
-  const double mover_age_s = lp.mover_max_coast_s > 0 ? std::min(lp.moving_max_age_s, lp.mover_max_coast_s) : lp.moving_max_age_s;
-  const robot::MovingTestParams moving_params{lp.moving_min_hits,        lp.moving_speed_mps,     mover_age_s,
+  const robot::MovingTestParams moving_params{lp.moving_min_hits,        lp.moving_speed_mps,     lp.moving_max_age_s,
                                               lp.moving_min_travel_m,    lp.moving_travel_sigmas, lp.moving_window_s,
                                               lp.moving_window_travel_m, lp.moving_direction_near_m};
   const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps, lp.near_track_overlap};

@@ -79,7 +79,11 @@ bool build_and_search(const std::vector<CircleObstacle>& obs, bool static_only, 
   return !out.path.empty();
 }
 
-double path_length(const std::vector<Vec2>& path);
+double path_length(const std::vector<Vec2>& path) {
+  double len = 0;
+  for (std::size_t i = 1; i < path.size(); ++i) len += norm(path[i] - path[i - 1]);
+  return len;
+}
 
 GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 goal, const PlannerParams& pp,
                        const RobotParams& rp) {
@@ -101,11 +105,15 @@ GlobalPlan global_plan(const std::vector<CircleObstacle>& obs, Vec2 start, Vec2 
       // frames and not in others (depth noise, the 0.1 m raster) makes the route flip between it and
       // a detour round the wall's end, and the robot loops in front of the wall (suite seed 146,
       // scenario 38). A much shorter route with the narrower margin wins.
-      if (pp.shortcut_ratio > 0 && !only_static) {
+      // A route from start to goal is at least their distance apart, so a full-margin route within
+      // ratio x that distance cannot lose to the shortcut: the second search runs only where it can win
+      // (not on the open-field frames, most of them).
+      const double full_len = path_length(gp.path);
+      if (pp.shortcut_ratio > 0 && !only_static && full_len > pp.shortcut_ratio * norm(goal - start)) {
         GlobalPlan sc;
         const double narrow = rp.radius_m + std::clamp(pp.shortcut_margin_m, pp.collision_margin_m, pp.safety_margin_m);
         if (narrow < full && build_and_search(obs, false, narrow, start, goal, m, res, true, pp, sc) &&
-            path_length(gp.path) > pp.shortcut_ratio * path_length(sc.path)) {
+            full_len > pp.shortcut_ratio * path_length(sc.path)) {
           sc.only_static = false;
           sc.reduced_margin = true;
           return sc;
@@ -132,12 +140,6 @@ Vec2 pick_carrot(const GlobalPlan& gp, Vec2 pos, double lookahead) {
     if (gp.grid.segment_free(pos, path[i])) best = path[i];
   }
   return best;
-}
-
-double path_length(const std::vector<Vec2>& path) {
-  double len = 0;
-  for (std::size_t i = 1; i < path.size(); ++i) len += norm(path[i] - path[i - 1]);
-  return len;
 }
 
 double point_segment_distance(Vec2 p, Vec2 a, Vec2 b) {
