@@ -26,10 +26,12 @@ inline const char* detect_input_name(DetectInput in) { return in == DetectInput:
 // The matcher settings for a detection consumer (detect, detect-eval, the robot loop): on the sparse
 // ESR input the densify stage, which then serves nothing, is switched off and costs nothing per frame;
 // on the dense input [densify] runs as configured. [detect] matcher_boundary turns the [boundary]
-// refinement on for these consumers (docs/detection.md "Input map").
+// refinement on for these consumers, [detect] matcher_subpixel_every_segment the sub-pixel value of every
+// segment ([cost] subpixel_every_segment; docs/detection.md "Input map").
 inline MatcherParams detection_matcher_params(MatcherParams p, const ConfigValues& v) {
   if (detect_input_from(v) == DetectInput::Esr) p.densify.enabled = false;
   if (v.flag("detect.matcher_boundary")) p.boundary.enabled = true;
+  if (v.flag("detect.matcher_subpixel_every_segment")) p.cost.subpixel_every_segment = true;
   return p;
 }
 // The map of a match result that detection reads.

@@ -1,5 +1,5 @@
 // The matcher settings the detection consumers (detect, detect-eval, the robot loop) run with:
-// [detect] input and [detect] matcher_boundary (docs/detection.md "Input map").
+// [detect] input, matcher_boundary and matcher_subpixel_every_segment (docs/detection.md "Input map").
 #include <gtest/gtest.h>
 
 #include "config.hpp"
@@ -27,6 +27,19 @@ TEST(DetectionMatcherParams, SparseInputSkipsDensifyAndMatcherBoundaryTurnsTheRe
   const fs::MatcherParams d = detection_matcher_params(dense.matcher, dense.values);
   EXPECT_TRUE(d.densify.enabled);
   EXPECT_TRUE(d.boundary.enabled);  // either switch turns it on
+}
+
+TEST(DetectionMatcherParams, MatcherSubpixelEverySegmentTurnsTheRuleOnForDetectionOnly) {
+  const fs::Config off = fs::parse_config("[detect]\nmatcher_subpixel_every_segment = false\n", "t");
+  ASSERT_FALSE(off.matcher.cost.subpixel_every_segment);
+  EXPECT_FALSE(detection_matcher_params(off.matcher, off.values).cost.subpixel_every_segment);
+
+  const fs::Config on = fs::parse_config("[detect]\nmatcher_subpixel_every_segment = true\n", "t");
+  EXPECT_TRUE(detection_matcher_params(on.matcher, on.values).cost.subpixel_every_segment);
+  EXPECT_FALSE(on.matcher.cost.subpixel_every_segment);  // match / eval / bench follow [cost] alone
+
+  const fs::Config cost = fs::parse_config("[cost]\nsubpixel_every_segment = true\n[detect]\nmatcher_subpixel_every_segment = false\n", "t");
+  EXPECT_TRUE(detection_matcher_params(cost.matcher, cost.values).cost.subpixel_every_segment);  // either switch
 }
 
 }  // namespace
