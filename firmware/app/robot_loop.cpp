@@ -1360,7 +1360,10 @@ LoopResult RobotLoop::run() {
                      {"confirmed", tr.confirmed},
                      {"hits", tr.hits},
                      {"first", {std::round(tr.first_meas_p.x * 100) / 100, std::round(tr.first_meas_p.y * 100) / 100}},
-                     {"last", {std::round(tr.last_meas_p.x * 100) / 100, std::round(tr.last_meas_p.y * 100) / 100}},
+                     // the last measurement at full precision with its variance: what the filter was given
+                     // (`fuzzyctl track-replay` re-runs the filter on it, host/src/fuzzyctl/reference/tracker.py)
+                     {"last", {tr.last_meas_p.x, tr.last_meas_p.y}},
+                     {"mvar", tr.last_meas_var},
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
                      {"support", support_cells(tr)},
                      {"mover", tr.mover}});

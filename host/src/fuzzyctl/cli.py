@@ -719,6 +719,38 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
         console.print(f"wrote {json_out}")
 
 
+@app.command("track-replay", short_help="Re-run the tracker's Kalman filter on run records (reference; what-if settings).")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--set", "sets", multiple=True, metavar="tracker.KEY=VALUE",
+              help="Filter setting instead of the record's (repeatable): accel_sigma_mps2, accel_sigma_steady_mps2, "
+                   "maneuver_nis, maneuver_fade, init_vel_sigma_mps, velocity_measurement.")
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the figures as JSON.")
+def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out: Path | None) -> None:
+    """The float reference of the tracker's filter (paper eq. 26-32, host/src/fuzzyctl/reference/tracker.py)
+    re-run on the measurements each record's tracks were updated with. Without --set the reference must
+    reproduce the firmware's recorded states (agreement); with --set it shows what the filter would have
+    estimated from the same measurements, with issue 5's tracking figures on simulator records."""
+    import json as _json
+
+    from .trackreplay import parse_overrides, track_replay
+
+    r = track_replay(list(run_dirs), parse_overrides(sets))
+    a = r["agreement"]
+    console.print(f"{r['records']} records, {a['states']} track states ({a['updates']} updates): reference vs firmware "
+                  f"max |dp| {a['max_pos_diff_m']:.2e} m, max |dv| {a['max_vel_diff_mps']:.2e} m/s"
+                  + (" (settings changed by --set: differences expected)" if r["overrides"] else ""))
+    m = r["movers"]
+    if m is not None and m["n"]:
+        f = lambda v: "-" if v is None else f"{v:.3f}"  # noqa: E731
+        console.print(f"moving obstacles, {m['n']} updates: position RMSE raw {f(m['raw_pos_rmse_m'])} m, firmware filter "
+                      f"{f(m['firmware_pos_rmse_m'])} m, replayed filter {f(m['replay_pos_rmse_m'])} m; velocity error "
+                      f"from the 10th hit ({m['vel_after10_n']} updates) p95 firmware {f(m['firmware_vel_after10_p95_mps'])}, "
+                      f"replayed {f(m['replay_vel_after10_p95_mps'])} m/s")
+    if json_out is not None:
+        json_out.write_text(_json.dumps(r, indent=2) + "\n")
+        console.print(f"wrote {json_out}")
+
+
 def _planned(p: dict | None) -> str:
     """The contacts table's "planned" cell: frames of the last second with the obstacle in the planner's
     list / frames with the list recorded, and the kinds covering it at the last of them."""

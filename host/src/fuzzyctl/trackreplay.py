@@ -1,0 +1,116 @@
+"""``fuzzyctl track-replay``: the tracker's Kalman filter re-run on run records (reference/tracker.py).
+
+Two uses:
+
+- **the cross-language check of the filter**: with each record's own ``[tracker]`` settings the
+  reference's states must equal the firmware's recorded ones (``agreement``: the largest position and
+  velocity difference over every track on every frame);
+- **what-if on the same measurements**: ``--set tracker.KEY=VALUE`` changes the filter's settings and
+  reports issue 5's tracking figures for the replayed filter beside the firmware's and the raw
+  measurements' (simulator records: the truth is in run.json) — the same selection as ``fuzzyctl
+  track-errors``: every update whose measurement lies within ``match_m`` of a moving obstacle.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from .errors import FatalError
+from .reference.tracker import KalmanParams, record_tracker_values, replay_frames
+from .runreport import load_run
+from .simworld import obstacle_state
+from .trackerrors import _circles, _nearest, _quantile
+
+#: The [tracker] fields the filter reads; others (association, deletion) cannot change in a replay.
+FILTER_KEYS = tuple(KalmanParams.__dataclass_fields__)
+
+
+def parse_overrides(items: tuple[str, ...] | list[str]) -> dict[str, Any]:
+    """``tracker.KEY=VALUE`` items (VALUE in TOML syntax) checked against the schema; FatalError naming a
+    bad item, a key the replay cannot change, or a value out of range."""
+    from .config import load_schema, validate
+
+    schema = load_schema()
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key.startswith("tracker."):
+            raise FatalError(f"--set {item!r}: expected tracker.KEY=VALUE (KEY one of {', '.join(FILTER_KEYS)})")
+        name = key.split(".", 1)[1]
+        if name not in FILTER_KEYS:
+            raise FatalError(f"--set {item!r}: a replay re-runs the filter only; KEY must be one of {', '.join(FILTER_KEYS)}")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError as exc:
+            raise FatalError(f"--set {item!r}: the value is not TOML ({exc})") from None
+        out[name] = validate({"tracker": {name: value}}, schema, f"--set {key}")["tracker"][name]
+    return out
+
+
+def _rms(v: list[float]) -> float | None:
+    return math.sqrt(sum(x * x for x in v) / len(v)) if v else None
+
+
+def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, match_m: float = 0.5) -> dict[str, Any]:
+    """Replay every record; the agreement with the firmware and (with truth) the movers' figures."""
+    if not run_dirs:
+        raise FatalError("no run record given")
+    overrides = overrides or {}
+    max_dp = max_dv = 0.0
+    states = updates = 0
+    raw_e: list[float] = []
+    ref_e: list[float] = []
+    fw_e: list[float] = []
+    ref_v10: list[float] = []
+    fw_v10: list[float] = []
+    truth = True
+    for run_dir in run_dirs:
+        run, frames = load_run(run_dir)
+        values = record_tracker_values(Path(run_dir))
+        values.update(overrides)
+        kp = KalmanParams.from_values(values)
+        replayed = replay_frames(frames, kp, str(Path(run_dir) / "frames.jsonl"))
+        world = run.get("world")
+        circles = _circles(run, Path(run_dir)) if isinstance(world, dict) and "obstacles" in world else None
+        truth = truth and circles is not None
+        for s in replayed:
+            states += 1
+            max_dp = max(max_dp, math.hypot(s.ref_p[0] - s.fw_p[0], s.ref_p[1] - s.fw_p[1]))
+            max_dv = max(max_dv, math.hypot(s.ref_v[0] - s.fw_v[0], s.ref_v[1] - s.fw_v[1]))
+            if not s.updated:
+                continue
+            updates += 1
+            if circles is None:
+                continue
+            hit = _nearest(circles, s.t, *s.raw)
+            if hit is None or hit[0] > match_m:
+                continue
+            _, o, ox, oy = hit
+            _, _, tvx, tvy = obstacle_state(o, s.t)
+            if math.hypot(tvx, tvy) <= 0.01:
+                continue
+            raw_e.append(hit[0])
+            ref_e.append(math.hypot(s.ref_p[0] - ox, s.ref_p[1] - oy))
+            fw_e.append(math.hypot(s.fw_p[0] - ox, s.fw_p[1] - oy))
+            if s.hits >= 10:
+                ref_v10.append(math.hypot(s.ref_v[0] - tvx, s.ref_v[1] - tvy))
+                fw_v10.append(math.hypot(s.fw_v[0] - tvx, s.fw_v[1] - tvy))
+    return {
+        "records": len(run_dirs),
+        "overrides": overrides,
+        "agreement": {"states": states, "updates": updates, "max_pos_diff_m": max_dp, "max_vel_diff_mps": max_dv},
+        "movers": None if not truth else {
+            "n": len(raw_e),
+            "raw_pos_rmse_m": _rms(raw_e),
+            "firmware_pos_rmse_m": _rms(fw_e),
+            "replay_pos_rmse_m": _rms(ref_e),
+            "vel_after10_n": len(ref_v10),
+            "firmware_vel_after10_p95_mps": _quantile(fw_v10, 0.95) if fw_v10 else None,
+            "replay_vel_after10_p95_mps": _quantile(ref_v10, 0.95) if ref_v10 else None,
+            "replay_vel_after10_median_mps": _quantile(ref_v10, 0.5) if ref_v10 else None,
+        },
+    }
