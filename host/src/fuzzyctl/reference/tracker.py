@@ -12,8 +12,9 @@ state (``p``, ``v``), its last measurement at full precision (``last``) with the
 gave it (``mvar``, since session 43) and the time since it (``age_s``: 0 on a frame that updated it).
 Association, confirmation and deletion are the firmware's; this module re-runs only the filter, track
 by track, on the measurements the firmware associated. With the record's own ``[tracker]`` settings
-the replayed states equal the firmware's to floating-point rounding (the cross-language check of the
-filter, ``tests/python/test_track_replay.py``); with other settings it answers "what would the filter
+the replayed states equal the firmware's to floating-point rounding — 1e-10 m, up to ~1e-5 m right after
+an update that follows seconds of coasting, whose covariance (10^3 m^2) makes it ill-conditioned — the
+cross-language check of the filter (``tests/python/test_track_replay.py``); with other settings it answers "what would the filter
 have estimated from the same measurements" — the tracking targets of issue 5 on the vision pipeline's
 own measurements (docs/robot.md "Session 43") without re-running the closed loop. The loop itself would
 have driven differently with another filter (the planner reads the tracks), which a replay does not show.
@@ -75,7 +76,7 @@ class TrackFilter:
     last_meas: np.ndarray = field(default_factory=lambda: np.zeros(2))
     last_var: float = 0.0
     last_t: float = 0.0
-    nis_mean: float = 0.0
+    nis_mean: float = 2.0  # the chi-square mean with 2 degrees of freedom (the firmware's Track::nis_mean)
     maneuvering: bool = False
 
     @classmethod
