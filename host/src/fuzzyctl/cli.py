@@ -677,6 +677,16 @@ def detect_report_cmd(eval_json: Path, dataset: Path | None, against: Path | Non
     console.print(f"detection report: {path} ({shown} frames pictured)")
 
 
+def _write_json(path: Path | None, obj: object) -> None:
+    """--json FILE of a report command: the figures as indented JSON (nothing when no file was asked for)."""
+    if path is None:
+        return
+    import json as _json
+
+    path.write_text(_json.dumps(obj, indent=2) + "\n")
+    console.print(f"wrote {path}")
+
+
 @app.command("track-errors", short_help="Tracker measurement and velocity errors of simulator run records.")
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
 @click.option("--min-hits", type=click.IntRange(1, 1000), default=4, show_default=True,
@@ -685,8 +695,6 @@ def detect_report_cmd(eval_json: Path, dataset: Path | None, against: Path | Non
 def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path | None) -> None:
     """Measurement error by bearing (signed outward / forward) and velocity error of moving and
     static obstacles' tracks, against the simulated world (fuzzystereo sim suite --record DIR)."""
-    import json as _json
-
     from rich.table import Table
 
     from .trackerrors import track_errors
@@ -714,9 +722,7 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
                       f"raw measurement {m['raw_pos_rmse_m']:.3f} m; velocity error from the 10th hit on "
                       f"({m['vel_after10_n']} updates): median {m['vel_after10_median_mps']:.3f}, "
                       f"RMS {m['vel_after10_rms_mps']:.3f}, p95 {m['vel_after10_p95_mps']:.3f} m/s")
-    if json_out is not None:
-        json_out.write_text(_json.dumps(r, indent=2) + "\n")
-        console.print(f"wrote {json_out}")
+    _write_json(json_out, r)
 
 
 @app.command("track-replay", short_help="Re-run the tracker's Kalman filter on run records (reference; what-if settings).")
@@ -730,8 +736,6 @@ def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out
     re-run on the measurements each record's tracks were updated with. Without --set the reference must
     reproduce the firmware's recorded states (agreement); with --set it shows what the filter would have
     estimated from the same measurements, with issue 5's tracking figures on simulator records."""
-    import json as _json
-
     from .trackreplay import parse_overrides, track_replay
 
     r = track_replay(list(run_dirs), parse_overrides(sets))
@@ -746,9 +750,7 @@ def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out
                       f"{f(m['firmware_pos_rmse_m'])} m, replayed filter {f(m['replay_pos_rmse_m'])} m; velocity error "
                       f"from the 10th hit ({m['vel_after10_n']} updates) p95 firmware {f(m['firmware_vel_after10_p95_mps'])}, "
                       f"replayed {f(m['replay_vel_after10_p95_mps'])} m/s")
-    if json_out is not None:
-        json_out.write_text(_json.dumps(r, indent=2) + "\n")
-        console.print(f"wrote {json_out}")
+    _write_json(json_out, r)
 
 
 def _planned(p: dict | None) -> str:
@@ -770,8 +772,6 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     covering it at the last; record with `--plan-every 1` to have every frame), the least share of the
     ground ahead the detector explained in the last second ("ground %", docs/robot.md "Session 32"),
     and a class (docs/robot.md "Session 29")."""
-    import json as _json
-
     from rich.table import Table
 
     from .contacts import contacts
@@ -806,9 +806,7 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
                   opt(c.get("ground_ahead_min_pct"), ".0f"))
     console.print(t)
     console.print(", ".join(f"{k}: {v}" for k, v in r["classes"].items()))
-    if json_out is not None:
-        json_out.write_text(_json.dumps(r, indent=2) + "\n")
-        console.print(f"wrote {json_out}")
+    _write_json(json_out, r)
 
 
 @app.command("suite-diff", short_help="Scenario-by-scenario comparison of closed-loop suite results.")
@@ -821,7 +819,6 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
     seed and count per pair): totals, every scenario whose outcome changed, and the exact sign tests of
     the scenarios reached in only one of the two runs and of those with a contact in only one (a small
     p: more than a harmless change's reshuffling; with 2-4 discordant scenarios p is never small)."""
-    import json as _json
     import math as _math
 
     from rich.table import Table
@@ -870,9 +867,7 @@ def suite_diff_cmd(files: tuple[Path, ...], time_change: float | None, json_out:
                       f"{row['new']} {row['new_time_s']:.1f} s",
                       f"[{style.get(row['change'], '')}]{row['change']}[/]" if row["change"] in style else row["change"])
         console.print(c)
-    if json_out is not None:
-        json_out.write_text(_json.dumps(j, indent=2) + "\n")
-        console.print(f"wrote {json_out}")
+    _write_json(json_out, j)
 
 
 @app.command("targets", short_help="Every issue target measured in one run: table, targets.json, index.html.")
