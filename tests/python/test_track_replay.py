@@ -73,7 +73,7 @@ def test_the_cli_prints_the_agreement_and_writes_json(demo_record: Path, tmp_pat
     out = tmp_path / "r.json"
     assert main(["track-replay", str(demo_record), "--json", str(out)]) in (0, None)
     text = capsys.readouterr().out
-    assert "reference vs firmware" in text and "moving obstacles" in text
+    assert "reference vs firmware" in text and "moving obstacles" in text and "position NIS" in text
     assert json.loads(out.read_text())["agreement"]["max_pos_diff_m"] < 1e-6
 
 
@@ -113,6 +113,16 @@ def test_a_mover_record_gives_the_targets_figures(tmp_path: Path) -> None:
     assert m["replay_vel_after10_p95_mps"] < 0.1
 
 
+def test_a_higher_floor_of_r_makes_the_innovations_smaller(suite_record: Path) -> None:
+    base = track_replay([suite_record])
+    assert base["nis"]["n"] > 50 and base["nis"]["mean"] > 0
+    floored = track_replay([suite_record], parse_overrides(["loop.meas_sigma_floor_m = 0.2"]))
+    assert floored["nis"]["mean"] < base["nis"]["mean"]  # R grew for every measurement below 0.2 m std
+    assert floored["agreement"]["max_pos_diff_m"] > 1e-3
+    with pytest.raises(FatalError, match="below the record's own floor"):
+        track_replay([suite_record], parse_overrides(["loop.meas_sigma_floor_m = 0.01"]))
+
+
 def test_bad_settings_and_old_records_are_named(tmp_path: Path) -> None:
     with pytest.raises(FatalError, match="KEY must be one of"):
         parse_overrides(["tracker.gate_m=1.0"])
@@ -120,6 +130,10 @@ def test_bad_settings_and_old_records_are_named(tmp_path: Path) -> None:
         parse_overrides(["accel_sigma_mps2=1"])
     with pytest.raises(FatalError, match="tracker.maneuver_nis"):
         parse_overrides(["tracker.maneuver_nis=-1"])
+    with pytest.raises(FatalError, match="loop.meas_sigma_floor_m"):
+        parse_overrides(["loop.meas_sigma_floor_m=5"])
+    with pytest.raises(FatalError, match="expected tracker.KEY=VALUE"):
+        parse_overrides(["loop.stuck_after_s=5"])
     frames = _mover_frames(3, 0.05)
     del frames[1]["tracks"][0]["mvar"]
     with pytest.raises(FatalError, match="frame 1, track 7: no 'mvar'"):

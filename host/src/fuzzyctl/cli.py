@@ -729,7 +729,8 @@ def track_errors_cmd(run_dirs: tuple[Path, ...], min_hits: int, json_out: Path |
 @click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
 @click.option("--set", "sets", multiple=True, metavar="tracker.KEY=VALUE",
               help="Filter setting instead of the record's (repeatable): accel_sigma_mps2, accel_sigma_steady_mps2, "
-                   "maneuver_nis, maneuver_fade, init_vel_sigma_mps, velocity_measurement.")
+                   "maneuver_nis, maneuver_fade, init_vel_sigma_mps, velocity_measurement; or loop.meas_sigma_floor_m "
+                   "(the floor of R, at or above the record's).")
 @click.option("--json", "json_out", type=_path, default=None, help="Also write the figures as JSON.")
 def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out: Path | None) -> None:
     """The float reference of the tracker's filter (paper eq. 26-32, host/src/fuzzyctl/reference/tracker.py)
@@ -743,6 +744,11 @@ def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out
     console.print(f"{r['records']} records, {a['states']} track states ({a['updates']} updates): reference vs firmware "
                   f"max |dp| {a['max_pos_diff_m']:.2e} m, max |dv| {a['max_vel_diff_mps']:.2e} m/s"
                   + (" (settings changed by --set: differences expected)" if r["overrides"] else ""))
+    nis = r["nis"]
+    if nis["n"]:
+        console.print(f"filter consistency (no truth needed), {nis['n']} updates of tracks past their 3rd hit: position NIS "
+                      f"mean {nis['mean']:.2f}, median {nis['median']:.2f}, {100 * nis['share_above_5_99']:.1f} % above 5.99 "
+                      "(a consistent filter: mean 2, 5 %; larger: R too small for these measurements)")
     m = r["movers"]
     if m is not None and m["n"]:
         f = lambda v: "-" if v is None else f"{v:.3f}"  # noqa: E731

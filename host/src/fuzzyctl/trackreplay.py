@@ -19,18 +19,20 @@ from pathlib import Path
 from typing import Any
 
 from .errors import FatalError
-from .reference.tracker import KalmanParams, record_tracker_values, replay_frames
+from .reference.tracker import KalmanParams, record_floor_m, record_tracker_values, replay_frames
 from .runreport import load_run
 from .simworld import obstacle_state
 from .trackerrors import _circles, _nearest, _quantile
 
 #: The [tracker] fields the filter reads; others (association, deletion) cannot change in a replay.
 FILTER_KEYS = tuple(KalmanParams.__dataclass_fields__)
+#: The one measurement setting a replay can change: the floor of R ([loop] meas_sigma_floor_m), upwards only.
+FLOOR_KEY = "loop.meas_sigma_floor_m"
 
 
 def parse_overrides(items: tuple[str, ...] | list[str]) -> dict[str, Any]:
-    """``tracker.KEY=VALUE`` items (VALUE in TOML syntax) checked against the schema; FatalError naming a
-    bad item, a key the replay cannot change, or a value out of range."""
+    """``tracker.KEY=VALUE`` items (or ``loop.meas_sigma_floor_m=VALUE``; VALUE in TOML syntax) checked against
+    the schema; FatalError naming a bad item, a key the replay cannot change, or a value out of range."""
     from .config import load_schema, validate
 
     schema = load_schema()
@@ -38,8 +40,16 @@ def parse_overrides(items: tuple[str, ...] | list[str]) -> dict[str, Any]:
     for item in items:
         key, sep, text = item.partition("=")
         key = key.strip()
+        if sep and key == FLOOR_KEY:
+            try:
+                value = tomllib.loads(f"v = {text.strip()}")["v"]
+            except tomllib.TOMLDecodeError as exc:
+                raise FatalError(f"--set {item!r}: the value is not TOML ({exc})") from None
+            out[FLOOR_KEY] = validate({"loop": {"meas_sigma_floor_m": value}}, schema, f"--set {key}")["loop"]["meas_sigma_floor_m"]
+            continue
         if not sep or not key.startswith("tracker."):
-            raise FatalError(f"--set {item!r}: expected tracker.KEY=VALUE (KEY one of {', '.join(FILTER_KEYS)})")
+            raise FatalError(f"--set {item!r}: expected tracker.KEY=VALUE (KEY one of {', '.join(FILTER_KEYS)}) "
+                             f"or {FLOOR_KEY}=VALUE")
         name = key.split(".", 1)[1]
         if name not in FILTER_KEYS:
             raise FatalError(f"--set {item!r}: a replay re-runs the filter only; KEY must be one of {', '.join(FILTER_KEYS)}")
@@ -66,14 +76,19 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
     ref_e: list[float] = []
     fw_e: list[float] = []
     ref_v10: list[float] = []
+    nis: list[float] = []
     fw_v10: list[float] = []
     truth = True
     for run_dir in run_dirs:
         run, frames = load_run(run_dir)
         values = record_tracker_values(Path(run_dir))
-        values.update(overrides)
+        values.update({k: v for k, v in overrides.items() if k != FLOOR_KEY})
         kp = KalmanParams.from_values(values)
-        replayed = replay_frames(frames, kp, str(Path(run_dir) / "frames.jsonl"))
+        floor = overrides.get(FLOOR_KEY, 0.0)
+        if floor and floor < record_floor_m(Path(run_dir)):
+            raise FatalError(f"--set {FLOOR_KEY}={floor}: below the record's own floor {record_floor_m(Path(run_dir))} m "
+                             f"({run_dir}/config.toml); its variances already hold that floor, so a replay can only raise it")
+        replayed = replay_frames(frames, kp, str(Path(run_dir) / "frames.jsonl"), floor * floor)
         world = run.get("world")
         circles = _circles(run, Path(run_dir)) if isinstance(world, dict) and "obstacles" in world else None
         truth = truth and circles is not None
@@ -84,6 +99,8 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
             if not s.updated:
                 continue
             updates += 1
+            if s.nis is not None and s.hits > 3:  # confirmed tracks past their first velocity estimates
+                nis.append(s.nis)
             if circles is None:
                 continue
             hit = _nearest(circles, s.t, *s.raw)
@@ -103,6 +120,11 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
         "records": len(run_dirs),
         "overrides": overrides,
         "agreement": {"states": states, "updates": updates, "max_pos_diff_m": max_dp, "max_vel_diff_mps": max_dv},
+        # Filter consistency, no truth needed (a real robot's records too): the position NIS of the updates of
+        # tracks past their 3rd hit; a consistent filter gives mean 2 and 95 % below 5.99 (chi-square, 2 dof).
+        "nis": {"n": len(nis), "mean": sum(nis) / len(nis) if nis else None,
+                "median": _quantile(nis, 0.5) if nis else None,
+                "share_above_5_99": sum(1 for v in nis if v > 5.991) / len(nis) if nis else None},
         "movers": None if not truth else {
             "n": len(raw_e),
             "raw_pos_rmse_m": _rms(raw_e),

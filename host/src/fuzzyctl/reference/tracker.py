@@ -96,12 +96,18 @@ class TrackFilter:
         self.x = f @ self.x
         self.P = f @ self.P @ f.T + process_noise(dt, self.q_level(kp))
 
-    def update(self, p: np.ndarray, var: float, t: float, dt_pred: float, kp: KalmanParams) -> None:
-        """The maneuver switch, then eq. (31)-(32) with H = I (z = [p, finite-difference v]) or H = [I 0]."""
+    def position_nis(self, p: np.ndarray, var: float) -> float:
+        """Normalised innovation squared of a position measurement against the predicted state: chi-square with
+        2 degrees of freedom (mean 2) while the model and R fit the measurements."""
+        s = self.P[:2, :2] + var * np.eye(2)
+        nu = p - self.x[:2]
+        return float(nu @ np.linalg.solve(s, nu))
+
+    def update(self, p: np.ndarray, var: float, t: float, dt_pred: float, kp: KalmanParams) -> float:
+        """The maneuver switch, then eq. (31)-(32) with H = I (z = [p, finite-difference v]) or H = [I 0].
+        Returns the position NIS before the update."""
+        nis = self.position_nis(p, var)
         if kp.accel_sigma_steady_mps2 > 0.0:
-            s = self.P[:2, :2] + var * np.eye(2)
-            nu = p - self.x[:2]
-            nis = float(nu @ np.linalg.solve(s, nu))
             self.nis_mean = kp.maneuver_fade * self.nis_mean + (1.0 - kp.maneuver_fade) * nis
             now = self.nis_mean > kp.maneuver_nis
             if now and not self.maneuvering and dt_pred > 0.0:
@@ -130,6 +136,7 @@ class TrackFilter:
         self.last_meas = p.copy()
         self.last_var = var
         self.last_t = t
+        return nis
 
 
 @dataclass(frozen=True)
@@ -145,12 +152,16 @@ class ReplayedState:
     fw_v: tuple[float, float]
     ref_p: tuple[float, float]
     ref_v: tuple[float, float]
+    nis: float | None = None  # position NIS of this frame's update (None: no update, or the track's first)
 
 
-def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = "frames.jsonl") -> list[ReplayedState]:
+def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = "frames.jsonl",
+                  var_floor_m2: float = 0.0) -> list[ReplayedState]:
     """The filter re-run on a record's frames (each frame is one tracker step, as in the loop): tracks
     are predicted to every frame, updated on frames with age_s == 0, started when their id first
-    appears, dropped when it no longer does. FatalError naming the frame when a track lacks ``mvar``."""
+    appears, dropped when it no longer does. ``var_floor_m2``: each measurement's variance is at least this
+    (``[loop] meas_sigma_floor_m`` squared; exact for floors at or above the record's own, which its
+    ``mvar`` already holds). FatalError naming the frame when a track lacks ``mvar``."""
     out: list[ReplayedState] = []
     filters: dict[int, TrackFilter] = {}
     t_prev: float | None = None
@@ -172,26 +183,37 @@ def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = 
                 raise FatalError(f"{source}: frame {f.get('frame')}, track {tid}: no 'mvar' (the measurement variance is "
                                  "recorded since session 43; re-record the run with this firmware)")
             p = np.array(tr["last"], dtype=float)
+            nis = None
             if tid not in filters:
                 if not updated:
                     continue  # appeared coasting: recorded before this replay could start it
-                filters[tid] = TrackFilter.init(p, float(tr["mvar"]), t, kp)
+                filters[tid] = TrackFilter.init(p, max(float(tr["mvar"]), var_floor_m2), t, kp)
             elif updated:
-                filters[tid].update(p, float(tr["mvar"]), t, dt_pred, kp)
+                nis = filters[tid].update(p, max(float(tr["mvar"]), var_floor_m2), t, dt_pred, kp)
             tf = filters[tid]
             out.append(ReplayedState(t, tid, updated, tf.hits, (float(p[0]), float(p[1])),
                                      (float(tr["p"][0]), float(tr["p"][1])), (float(tr["v"][0]), float(tr["v"][1])),
-                                     (float(tf.x[0]), float(tf.x[1])), (float(tf.x[2]), float(tf.x[3]))))
+                                     (float(tf.x[0]), float(tf.x[1])), (float(tf.x[2]), float(tf.x[3])), nis))
         for tid in [k for k in filters if k not in seen]:
             del filters[tid]
     return out
 
 
-def record_tracker_values(run_dir: Path) -> dict[str, Any]:
-    """The ``[tracker]`` table of a record's config.toml (defaults where it is silent)."""
+def record_config(run_dir: Path) -> dict[str, dict[str, Any]]:
+    """A record's config.toml (defaults where it is silent)."""
     from ..config import parse_config
 
     path = Path(run_dir) / "config.toml"
     if not path.is_file():
         raise FatalError(f"{path}: not found (the run's configuration; is {run_dir} a --record directory?)")
-    return parse_config(path.read_text(), str(path), strict=False, ignored={}).as_dict()["tracker"]
+    return parse_config(path.read_text(), str(path), strict=False, ignored={}).as_dict()
+
+
+def record_tracker_values(run_dir: Path) -> dict[str, Any]:
+    """The ``[tracker]`` table of a record's config.toml."""
+    return record_config(run_dir)["tracker"]
+
+
+def record_floor_m(run_dir: Path) -> float:
+    """The record's ``[loop] meas_sigma_floor_m``: the smallest measurement std its ``mvar`` can hold."""
+    return float(record_config(run_dir)["loop"]["meas_sigma_floor_m"])
