@@ -111,6 +111,10 @@ def test_a_mover_record_gives_the_targets_figures(tmp_path: Path) -> None:
     assert m["firmware_pos_rmse_m"] == pytest.approx(0.05, abs=1e-9)  # the fake record's "p" is the raw measurement
     assert m["replay_pos_rmse_m"] < 0.05  # the filter averages the white zigzag
     assert m["replay_vel_after10_p95_mps"] < 0.1
+    # A robot's own record has no world: no truth figures, the agreement and the NIS all the same.
+    (d / "run.json").write_text(json.dumps({"source": "libcamera", "result": {}}))
+    r = track_replay([d])
+    assert r["movers"] is None and r["nis"]["n"] == 40 - 3 and r["agreement"]["updates"] == 40
 
 
 def test_a_higher_floor_of_r_makes_the_innovations_smaller(suite_record: Path) -> None:
