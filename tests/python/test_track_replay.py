@@ -57,7 +57,7 @@ def test_the_reference_reproduces_the_maneuver_switch_of_a_suite_run(suite_recor
     assert r["agreement"]["max_pos_diff_m"] < 1e-4, r["agreement"]
     assert r["agreement"]["max_vel_diff_mps"] < 1e-4, r["agreement"]
     # The switch matters on this run: never switching moves the states by centimetres.
-    off = track_replay([suite_record], {"maneuver_nis": 100.0})
+    off = track_replay([suite_record], {"tracker.maneuver_nis": 100.0})
     assert off["agreement"]["max_pos_diff_m"] > 1e-2
 
 

@@ -53,6 +53,16 @@ def load_run(run_dir: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     return run, frames
 
 
+def load_run_config(run_dir: Path) -> dict[str, dict[str, Any]]:
+    """A run record's config.toml (the whole configuration the run used; defaults where it is silent)."""
+    from .config import parse_config
+
+    path = Path(run_dir) / "config.toml"
+    if not path.is_file():
+        raise FatalError(f"{path}: not found (the run's configuration; is {run_dir} a --record directory?)")
+    return parse_config(path.read_text(), str(path), strict=False, ignored={}).as_dict()
+
+
 def _fig_png(fig) -> str:
     return figure_data_uri(fig, dpi=110, tight=True)
 

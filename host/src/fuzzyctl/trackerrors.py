@@ -37,7 +37,13 @@ from .simworld import obstacle_state
 BEARING_BANDS = ((0, 10), (10, 20), (20, 30), (30, 40), (40, 90))
 
 
-def _circles(run: dict[str, Any], run_dir: Path) -> list[dict[str, Any]]:
+def has_truth(run: dict[str, Any]) -> bool:
+    """Whether a run record holds the simulated world (only simulator runs do)."""
+    world = run.get("world")
+    return isinstance(world, dict) and "obstacles" in world
+
+
+def world_circles(run: dict[str, Any], run_dir: Path) -> list[dict[str, Any]]:
     world = run.get("world")
     if not isinstance(world, dict) or "obstacles" not in world:
         raise FatalError(f"{run_dir / 'run.json'}: no 'world.obstacles' (only simulator runs have the truth)")
@@ -56,7 +62,22 @@ def _nearest(circles: list[dict[str, Any]], t: float, x: float, y: float
     return best
 
 
-def _quantile(v: list[float], q: float) -> float:
+def mover_truth(circles: list[dict[str, Any]], t: float, x: float, y: float, match_m: float
+                ) -> tuple[float, float, float, float] | None:
+    """Issue 5's tracking targets on vision measurements count a measurement at (x, y) when it lies within
+    match_m of the nearest circle and that circle moves: (x, y, vx, vy) of that obstacle at time t, else None.
+    One definition for ``track-errors`` and ``track-replay``, so their figures are comparable."""
+    hit = _nearest(circles, t, x, y)
+    return _if_moving(hit, t) if hit is not None and hit[0] <= match_m else None
+
+
+def _if_moving(hit: tuple[float, dict[str, Any], float, float], t: float) -> tuple[float, float, float, float] | None:
+    """(x, y, vx, vy) of a _nearest hit's obstacle at time t when it moves, else None."""
+    _, _, vx, vy = obstacle_state(hit[1], t)
+    return (hit[2], hit[3], vx, vy) if math.hypot(vx, vy) > 0.01 else None
+
+
+def quantile(v: list[float], q: float) -> float:
     s = sorted(v)
     return s[int(q * (len(s) - 1))] if s else float("nan")
 
@@ -73,7 +94,7 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
     vel10: list[float] = []
     for run_dir in run_dirs:
         run, frames = load_run(run_dir)
-        circles = _circles(run, Path(run_dir))
+        circles = world_circles(run, Path(run_dir))
         for f in frames:
             if "true_pose" not in f or "tracks" not in f:
                 raise FatalError(f"{Path(run_dir) / 'frames.jsonl'}: frame {f.get('frame')} has no 'true_pose'/'tracks'")
@@ -96,8 +117,9 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
                         if band[0] <= bearing < band[1]:
                             meas[band].append((outward, e_fwd, math.hypot(ex, ey)))
                             break
-                    _, _, tvx, tvy = obstacle_state(o, t)
-                    if math.hypot(tvx, tvy) > 0.01 and "p" in tr:
+                    mt = _if_moving(hit, t)  # the selection of mover_truth, on the hit already found
+                    if mt is not None and "p" in tr:
+                        _, _, tvx, tvy = mt
                         raw_sq.append(ex * ex + ey * ey)
                         filt_sq.append((tr["p"][0] - ox) ** 2 + (tr["p"][1] - oy) ** 2)
                         if tr.get("hits", 0) >= 10 and "v" in tr:
@@ -121,7 +143,7 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
         })
     for kind, v in vel.items():
         out["velocity"][kind] = {"n": len(v), "median_mps": statistics.median(v) if v else None,
-                                 "p90_mps": _quantile(v, 0.9) if v else None}
+                                 "p90_mps": quantile(v, 0.9) if v else None}
     out["movers"] = {
         "n": len(raw_sq),
         "filt_pos_rmse_m": math.sqrt(sum(filt_sq) / len(filt_sq)) if filt_sq else None,
@@ -129,6 +151,6 @@ def track_errors(run_dirs: list[Path], match_m: float = 0.5, velocity_match_m: f
         "vel_after10_n": len(vel10),
         "vel_after10_rms_mps": math.sqrt(sum(v * v for v in vel10) / len(vel10)) if vel10 else None,
         "vel_after10_median_mps": statistics.median(vel10) if vel10 else None,
-        "vel_after10_p95_mps": _quantile(vel10, 0.95) if vel10 else None,
+        "vel_after10_p95_mps": quantile(vel10, 0.95) if vel10 else None,
     }
     return out

@@ -19,10 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from .errors import FatalError
-from .reference.tracker import KalmanParams, record_floor_m, record_tracker_values, replay_frames
-from .runreport import load_run
-from .simworld import obstacle_state
-from .trackerrors import _circles, _nearest, _quantile
+from .reference.tracker import KalmanParams, replay_frames
+from .runreport import load_run, load_run_config
+from .trackerrors import has_truth, mover_truth, quantile, world_circles
 
 #: The [tracker] fields the filter reads; others (association, deletion) cannot change in a replay.
 FILTER_KEYS = tuple(KalmanParams.__dataclass_fields__)
@@ -32,7 +31,8 @@ FLOOR_KEY = "loop.meas_sigma_floor_m"
 
 def parse_overrides(items: tuple[str, ...] | list[str]) -> dict[str, Any]:
     """``tracker.KEY=VALUE`` items (or ``loop.meas_sigma_floor_m=VALUE``; VALUE in TOML syntax) checked against
-    the schema; FatalError naming a bad item, a key the replay cannot change, or a value out of range."""
+    the schema, as {"section.key": value}; FatalError naming a bad item, a key the replay cannot change, or a
+    value out of range."""
     from .config import load_schema, validate
 
     schema = load_schema()
@@ -40,24 +40,17 @@ def parse_overrides(items: tuple[str, ...] | list[str]) -> dict[str, Any]:
     for item in items:
         key, sep, text = item.partition("=")
         key = key.strip()
-        if sep and key == FLOOR_KEY:
-            try:
-                value = tomllib.loads(f"v = {text.strip()}")["v"]
-            except tomllib.TOMLDecodeError as exc:
-                raise FatalError(f"--set {item!r}: the value is not TOML ({exc})") from None
-            out[FLOOR_KEY] = validate({"loop": {"meas_sigma_floor_m": value}}, schema, f"--set {key}")["loop"]["meas_sigma_floor_m"]
-            continue
-        if not sep or not key.startswith("tracker."):
+        if not sep or not (key.startswith("tracker.") or key == FLOOR_KEY):
             raise FatalError(f"--set {item!r}: expected tracker.KEY=VALUE (KEY one of {', '.join(FILTER_KEYS)}) "
                              f"or {FLOOR_KEY}=VALUE")
-        name = key.split(".", 1)[1]
-        if name not in FILTER_KEYS:
+        section, name = key.split(".", 1)
+        if section == "tracker" and name not in FILTER_KEYS:
             raise FatalError(f"--set {item!r}: a replay re-runs the filter only; KEY must be one of {', '.join(FILTER_KEYS)}")
         try:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError as exc:
             raise FatalError(f"--set {item!r}: the value is not TOML ({exc})") from None
-        out[name] = validate({"tracker": {name: value}}, schema, f"--set {key}")["tracker"][name]
+        out[key] = validate({section: {name: value}}, schema, f"--set {key}")[section][name]
     return out
 
 
@@ -66,7 +59,8 @@ def _rms(v: list[float]) -> float | None:
 
 
 def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, match_m: float = 0.5) -> dict[str, Any]:
-    """Replay every record; the agreement with the firmware and (with truth) the movers' figures."""
+    """Replay every record; the agreement with the firmware and (with truth) the movers' figures. ``overrides``:
+    {"tracker.KEY" | "loop.meas_sigma_floor_m": value}, as parse_overrides returns them."""
     if not run_dirs:
         raise FatalError("no run record given")
     overrides = overrides or {}
@@ -81,16 +75,16 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
     truth = True
     for run_dir in run_dirs:
         run, frames = load_run(run_dir)
-        values = record_tracker_values(Path(run_dir))
-        values.update({k: v for k, v in overrides.items() if k != FLOOR_KEY})
-        kp = KalmanParams.from_values(values)
-        floor = overrides.get(FLOOR_KEY, 0.0)
-        if floor and floor < record_floor_m(Path(run_dir)):
-            raise FatalError(f"--set {FLOOR_KEY}={floor}: below the record's own floor {record_floor_m(Path(run_dir))} m "
-                             f"({run_dir}/config.toml); its variances already hold that floor, so a replay can only raise it")
+        cfg = load_run_config(Path(run_dir))
+        tracker = dict(cfg["tracker"])
+        tracker.update({k.split(".", 1)[1]: v for k, v in overrides.items() if k.startswith("tracker.")})
+        kp = KalmanParams.from_values(tracker)
+        floor, own = overrides.get(FLOOR_KEY, 0.0), float(cfg["loop"]["meas_sigma_floor_m"])
+        if floor and floor < own:
+            raise FatalError(f"--set {FLOOR_KEY}={floor}: below the record's own floor {own} m ({run_dir}/config.toml); "
+                             "its variances already hold that floor, so a replay can only raise it")
         replayed = replay_frames(frames, kp, str(Path(run_dir) / "frames.jsonl"), floor * floor)
-        world = run.get("world")
-        circles = _circles(run, Path(run_dir)) if isinstance(world, dict) and "obstacles" in world else None
+        circles = world_circles(run, Path(run_dir)) if has_truth(run) else None
         truth = truth and circles is not None
         for s in replayed:
             states += 1
@@ -103,14 +97,11 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
                 nis.append(s.nis)
             if circles is None:
                 continue
-            hit = _nearest(circles, s.t, *s.raw)
-            if hit is None or hit[0] > match_m:
+            mt = mover_truth(circles, s.t, *s.raw, match_m)
+            if mt is None:
                 continue
-            _, o, ox, oy = hit
-            _, _, tvx, tvy = obstacle_state(o, s.t)
-            if math.hypot(tvx, tvy) <= 0.01:
-                continue
-            raw_e.append(hit[0])
+            ox, oy, tvx, tvy = mt
+            raw_e.append(math.hypot(s.raw[0] - ox, s.raw[1] - oy))
             ref_e.append(math.hypot(s.ref_p[0] - ox, s.ref_p[1] - oy))
             fw_e.append(math.hypot(s.fw_p[0] - ox, s.fw_p[1] - oy))
             if s.hits >= 10:
@@ -123,7 +114,7 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
         # Filter consistency, no truth needed (a real robot's records too): the position NIS of the updates of
         # tracks past their 3rd hit; a consistent filter gives mean 2 and 95 % below 5.99 (chi-square, 2 dof).
         "nis": {"n": len(nis), "mean": sum(nis) / len(nis) if nis else None,
-                "median": _quantile(nis, 0.5) if nis else None,
+                "median": quantile(nis, 0.5) if nis else None,
                 "share_above_5_99": sum(1 for v in nis if v > 5.991) / len(nis) if nis else None},
         "movers": None if not truth else {
             "n": len(raw_e),
@@ -131,8 +122,8 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
             "firmware_pos_rmse_m": _rms(fw_e),
             "replay_pos_rmse_m": _rms(ref_e),
             "vel_after10_n": len(ref_v10),
-            "firmware_vel_after10_p95_mps": _quantile(fw_v10, 0.95) if fw_v10 else None,
-            "replay_vel_after10_p95_mps": _quantile(ref_v10, 0.95) if ref_v10 else None,
-            "replay_vel_after10_median_mps": _quantile(ref_v10, 0.5) if ref_v10 else None,
+            "firmware_vel_after10_p95_mps": quantile(fw_v10, 0.95) if fw_v10 else None,
+            "replay_vel_after10_p95_mps": quantile(ref_v10, 0.95) if ref_v10 else None,
+            "replay_vel_after10_median_mps": quantile(ref_v10, 0.5) if ref_v10 else None,
         },
     }

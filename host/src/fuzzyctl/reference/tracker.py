@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -173,7 +172,8 @@ def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = 
         if dt_pred > 0.0:
             for tf in filters.values():
                 tf.predict(dt_pred, kp)
-        t_prev = t if t_prev is None or t > t_prev else t_prev
+        if t_prev is None or dt_pred > 0.0:
+            t_prev = t
         seen: set[int] = set()
         for tr in f["tracks"]:
             tid = int(tr["id"])
@@ -198,22 +198,3 @@ def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = 
             del filters[tid]
     return out
 
-
-def record_config(run_dir: Path) -> dict[str, dict[str, Any]]:
-    """A record's config.toml (defaults where it is silent)."""
-    from ..config import parse_config
-
-    path = Path(run_dir) / "config.toml"
-    if not path.is_file():
-        raise FatalError(f"{path}: not found (the run's configuration; is {run_dir} a --record directory?)")
-    return parse_config(path.read_text(), str(path), strict=False, ignored={}).as_dict()
-
-
-def record_tracker_values(run_dir: Path) -> dict[str, Any]:
-    """The ``[tracker]`` table of a record's config.toml."""
-    return record_config(run_dir)["tracker"]
-
-
-def record_floor_m(run_dir: Path) -> float:
-    """The record's ``[loop] meas_sigma_floor_m``: the smallest measurement std its ``mvar`` can hold."""
-    return float(record_config(run_dir)["loop"]["meas_sigma_floor_m"])
