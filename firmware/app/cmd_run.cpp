@@ -336,7 +336,7 @@ void run_suite(const SuiteOptions& o) {
 
   int struck = 0;
   int solvable = 0, reached = 0, collisions = 0, blocked = 0, blocked_safe = 0, moving = 0, moving_ok = 0, gaps = 0,
-      gaps_ok = 0, errors = 0, stuck = 0, stuck_ok = 0;
+      gaps_ok = 0, errors = 0, stuck = 0, stuck_ok = 0, gave_up = 0, gave_up_blocked = 0;
   std::vector<double> ratios, fps, match_ms, total_ms;
   json per = json::array();
   for (const Item& it : items) {
@@ -344,6 +344,10 @@ void run_suite(const SuiteOptions& o) {
     if (r.status.rfind("error", 0) == 0) ++errors;
     if (r.collided) ++collisions;
     if (r.struck) ++struck;
+    if (r.status == "no_progress_stop") {
+      ++gave_up;
+      gave_up_blocked += it.blocked;
+    }
     if (it.blocked) {
       ++blocked;
       if (r.safe_stop && !r.collided) ++blocked_safe;
@@ -400,6 +404,9 @@ void run_suite(const SuiteOptions& o) {
   std::printf("collisions            %3d          (target 0)\n", collisions);
   std::printf("struck while standing  %3d          (a moving obstacle from outside the camera view)\n", struck);
   std::printf("safe stop, no path    %3d / %3d  %.1f %%   (target 100 %%)\n", blocked_safe, blocked, safe);
+  if (gave_up > 0)
+    std::printf("  after no progress     %3d          ([loop] give_up_after_s: %d without a free path, %d solvable)\n", gave_up,
+                gave_up_blocked, gave_up - gave_up_blocked);
   std::printf("path / shortest       mean %.3f  max %.3f\n", ratio_mean, ratio_max);
   std::printf("processing            median %.1f frames/s (match %.1f ms, whole frame %.1f ms)\n", med(fps),
               med(match_ms), med(total_ms));
@@ -420,6 +427,8 @@ void run_suite(const SuiteOptions& o) {
            {"blocked", blocked},
            {"blocked_safe_stop", blocked_safe},
            {"safe_stop_pct", safe},
+           {"no_progress_stops", gave_up},
+           {"no_progress_stops_blocked", gave_up_blocked},
            {"path_ratio_mean", ratio_mean},
            {"path_ratio_max", ratio_max},
            {"fps_median", med(fps)},

@@ -103,7 +103,7 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
+      stuck_exit_m, give_up_after_s, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
   bool stuck_keep_unseen, body_fit;
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
@@ -164,6 +164,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.stuck_after_s = v.num("loop.stuck_after_s");
   p.stuck_progress_m = v.num("loop.stuck_progress_m");
   p.stuck_exit_m = v.num("loop.stuck_exit_m");
+  p.give_up_after_s = v.num("loop.give_up_after_s");
   p.stuck_keep_unseen = v.flag("loop.stuck_keep_unseen");
   p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
   p.memory_s = v.num("loop.memory_s");
@@ -587,6 +588,9 @@ LoopResult RobotLoop::run() {
   int blocked_run = 0;
   // Progress towards the goal ([loop] stuck_after_s; robot::ProgressMonitor).
   robot::ProgressMonitor progress({lp.stuck_after_s, lp.stuck_progress_m, lp.stuck_exit_m});
+  // Giving up ([loop] give_up_after_s; robot::GiveUpMonitor): no progress for that long with a blocked
+  // plan since the last progress -> stop for good, a safe stop.
+  robot::GiveUpMonitor give_up({lp.give_up_after_s, lp.stuck_progress_m});
   robot::ObstacleMapParams map_params;
   map_params.remember_seen = I.pp.unseen_check_s > 0;  // [planner] unseen_check_s asks the map
   robot::ObstacleMap world_map(map_params);
@@ -1202,6 +1206,9 @@ LoopResult RobotLoop::run() {
     want = robot::apply_front_stop(want, ahead || ground_unseen, I.rp.stop_allows_turning);
     if (ahead) ++res.front_stops;
     if (ground_unseen) ++res.ground_stops;
+    // Checked after the plan of this step, so the step that gives up already commands the stop.
+    const bool gave_up = give_up.update(t_frame - t0, robot::norm(goal - pose.pos()), plan.status == robot::PlanStatus::kBlocked);
+    if (gave_up) want = {};
     const bool held = opt.hold && opt.hold();
     if (held || perception_halt) {
       want = {};
@@ -1341,6 +1348,7 @@ LoopResult RobotLoop::run() {
       fj["reduced_margin"] = plan.reduced_margin;
       fj["route_kept"] = plan.route_kept;
       fj["stuck"] = stuck;
+      if (gave_up) fj["gave_up"] = true;
     }
     json dets = json::array();
     for (const Obstacle& o : det.obstacles)
@@ -1428,6 +1436,15 @@ LoopResult RobotLoop::run() {
       res.reached = true;
       end_status = "reached";
       break;
+    }
+    if (gave_up) {
+      const double speed = I.sim_motors ? std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps())
+                                        : std::fabs(applied.v) + std::fabs(applied.omega);
+      if (speed < 1e-3) {
+        res.safe_stop = !res.collided;
+        end_status = "no_progress_stop";
+        break;
+      }
     }
     if (blocked_run >= blocked_frames_to_stop) {
       const double speed = I.sim_motors ? std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps())

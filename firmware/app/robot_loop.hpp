@@ -64,7 +64,7 @@ struct StageStat {
 };
 
 struct LoopResult {
-  std::string status;       // reached | collision | struck | blocked_stop | timeout | end_of_stream | interrupted | frames
+  std::string status;       // reached | collision | struck | blocked_stop | no_progress_stop | timeout | end_of_stream | interrupted | frames
   bool reached = false, collided = false, safe_stop = false, timed_out = false;
   // sim: a moving obstacle ran into the standing robot from outside the camera's view (not counted
   // as a collision of the robot, not a success either; docs/robot.md "Closed-loop suite")

@@ -17,6 +17,18 @@ bool ProgressMonitor::update(std::int64_t t_ns, double goal_dist_m) {
   return stuck_;
 }
 
+bool GiveUpMonitor::update(std::int64_t t_ns, double goal_dist_m, bool blocked) {
+  if (given_up_) return true;
+  if (goal_dist_m < best_m_ - p_.progress_m) {  // best_m_ starts at +inf
+    best_m_ = goal_dist_m;
+    best_ns_ = t_ns;
+    blocked_since_best_ = false;
+  }
+  blocked_since_best_ = blocked_since_best_ || blocked;
+  given_up_ = p_.after_s > 0 && blocked_since_best_ && static_cast<double>(t_ns - best_ns_) * 1e-9 >= p_.after_s;
+  return given_up_;
+}
+
 bool stuck_drops_track_circle(bool stuck, bool keep_unseen, const Pose2D& robot, Vec2 track_pos, double half_fov_rad) {
   if (!stuck) return false;
   if (!keep_unseen) return true;

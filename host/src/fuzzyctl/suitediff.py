@@ -20,7 +20,8 @@ from typing import Any
 from .errors import FatalError, load_json
 
 # Outcome classes of a solvable scenario, worst first (for "worse"/"better" of a changed pair).
-_SOLVABLE_RANK = {"collision": 0, "struck": 1, "timeout": 2, "blocked_stop": 3, "error": 2, "reached": 4}
+_SOLVABLE_RANK = {"collision": 0, "struck": 1, "timeout": 2, "blocked_stop": 3, "no_progress_stop": 3, "error": 2,
+                 "reached": 4}
 
 
 @dataclass

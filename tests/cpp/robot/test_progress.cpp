@@ -1,4 +1,5 @@
-// ProgressMonitor ([loop] stuck_after_s): when a robot counts as stuck, and when it stops.
+// ProgressMonitor ([loop] stuck_after_s): when a robot counts as stuck, and when it stops;
+// GiveUpMonitor ([loop] give_up_after_s): when it stops for good.
 #include <gtest/gtest.h>
 
 #include "fuzzystereo/robot/progress.hpp"
@@ -46,6 +47,41 @@ TEST(Progress, TheModeHoldsUntilTheRobotIsExitCloserThanBefore) {
   // And a new timer from the new best.
   EXPECT_FALSE(m.update(13 * kS, 3.2));
   EXPECT_TRUE(m.update(15 * kS, 3.2));
+}
+
+// [loop] give_up_after_s: stop for good after no progress with a blocked plan since the last progress.
+TEST(GiveUp, NeverWhenOff) {
+  GiveUpMonitor m({0.0, 0.3});
+  for (int i = 0; i < 1000; ++i) EXPECT_FALSE(m.update(i * kS, 5.0, true));
+}
+
+TEST(GiveUp, NeedsBothTheTimeWithoutProgressAndABlockedPlanSinceTheBest) {
+  GiveUpMonitor m({15.0, 0.3});
+  EXPECT_FALSE(m.update(0, 5.0, false));  // best 5.0 at t = 0
+  // 40 s of wandering without progress, the planner always finding a path: no.
+  for (int i = 1; i <= 40; ++i) EXPECT_FALSE(m.update(i * kS, 5.1, false)) << i;
+  // One blocked step: the timer already runs from t = 0, so the rule holds at once.
+  EXPECT_TRUE(m.update(41 * kS, 5.1, true));
+  // It latches, whatever comes next.
+  EXPECT_TRUE(m.update(42 * kS, 1.0, false));
+  EXPECT_TRUE(m.given_up());
+}
+
+TEST(GiveUp, ProgressClearsTheBlockedStepAndRestartsTheTimer) {
+  GiveUpMonitor m({15.0, 0.3});
+  m.update(0, 5.0, false);
+  EXPECT_FALSE(m.update(2 * kS, 5.0, true));  // blocked 2 s after the best: the time is not up
+  // 0.4 m closer at t = 10 s: a new best, the blocked step before it no longer counts.
+  EXPECT_FALSE(m.update(10 * kS, 4.6, false));
+  EXPECT_FALSE(m.update(30 * kS, 4.5, false));  // 20 s, but no blocked step since the best
+  EXPECT_TRUE(m.update(31 * kS, 4.5, true));    // blocked, 21 s after the best: gives up
+}
+
+TEST(GiveUp, GivesUpExactlyWhenTheTimeIsReached) {
+  GiveUpMonitor m({15.0, 0.3});
+  m.update(0, 5.0, true);  // blocked on the first step (the best is set on it)
+  EXPECT_FALSE(m.update(15 * kS - 1, 4.9, false));
+  EXPECT_TRUE(m.update(15 * kS, 4.9, false));
 }
 
 // [loop] stuck_keep_unseen: while stuck, only tracks the camera looks at lose their circles.

@@ -34,6 +34,34 @@ class ProgressMonitor {
   double entry_m_ = 0.0;  // best distance when the mode began
 };
 
+// Giving up ([loop] give_up_after_s, docs/robot.md "Session 44"): the robot has not got `progress_m`
+// closer to the goal (straight line, the same test as ProgressMonitor) for `after_s`, and since its last
+// progress the planner has at least once found no path at all (PlanStatus::kBlocked). It then stops for
+// good, a safe stop: the goal looks unreachable and the robot has stopped getting closer to it. The
+// blocked scan alone needs 3 s of "blocked" in a row after its turn; a robot circling a ring of obstacles
+// round the goal sees a new opening every few frames, so its plan flickers between blocked and moving
+// and the run ended at the time limit (seeds 160-163: 4 of 6 missed safe stops).
+struct GiveUpParams {
+  double after_s = 0.0;     // [loop] give_up_after_s (0 = never)
+  double progress_m = 0.3;  // [loop] stuck_progress_m
+};
+
+class GiveUpMonitor {
+ public:
+  explicit GiveUpMonitor(const GiveUpParams& p) : p_(p) {}
+  // One planning step at time t_ns: the robot's straight-line distance to the goal and whether this
+  // step's plan found no path. True from the step the rule holds on (it latches).
+  bool update(std::int64_t t_ns, double goal_dist_m, bool blocked);
+  bool given_up() const { return given_up_; }
+
+ private:
+  GiveUpParams p_;
+  double best_m_ = std::numeric_limits<double>::infinity();
+  std::int64_t best_ns_ = 0;
+  bool blocked_since_best_ = false;
+  bool given_up_ = false;
+};
+
 // While stuck, does a track that fails the moving test lose its near-track circle and reachable set?
 // Without keep_unseen ([loop] stuck_keep_unseen = false, session 23) every such track does. With it
 // (session 25) only a track whose estimated position is inside the camera's horizontal view
