@@ -18,6 +18,7 @@
 #include "fuzzystereo/robot/motors.hpp"
 #include "fuzzystereo/sim/scene.hpp"
 #include "io.hpp"
+#include "detect_io.hpp"
 #include "dump.hpp"
 #include "fuzzystereo/link/device_server.hpp"
 #include "fuzzystereo/link/port.hpp"
@@ -165,13 +166,16 @@ void run_run(const RunOptions& o) {
     }
     lo.hold = [&server] { return server->state() != link::msg::RunState::RUNNING; };
     lo.on_frame = [&server, &o](const json& f) { server->publish(telemetry_of(f, o.source, server->uptime_ms())); };
-    lo.on_match = [&snap, &cfg, tmp](const ImageU8& l, const ImageU8& r, const MatchResult& m) {
+    // The snapshot's dump names the settings the loop's matcher ran with: the detection consumers' ones
+    // ([detect] matcher_*; detect_io.hpp), so that `fuzzyctl compare` re-runs the reference with them.
+    lo.on_match = [&snap, robot_matcher = detection_matcher_params(cfg.matcher, cfg.values), tmp](
+                      const ImageU8& l, const ImageU8& r, const MatchResult& m) {
       std::lock_guard<std::mutex> g(snap.m);
       if (!snap.wanted) return;
       snap.wanted = false;
       try {
         std::filesystem::remove_all(tmp);
-        write_match_dump(tmp.string(), "run:left", "run:right", cfg.matcher, load_fis_definition(""), l, r, m);
+        write_match_dump(tmp.string(), "run:left", "run:right", robot_matcher, load_fis_definition(""), l, r, m);
         snap.files.clear();
         for (const auto& ent : std::filesystem::directory_iterator(tmp)) {
           const std::string t = link::read_file_text(ent.path());

@@ -12,6 +12,7 @@
 #include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/params.hpp"
 #include "config.hpp"
+#include "io.hpp"
 
 namespace fs::app {
 
@@ -27,11 +28,20 @@ inline const char* detect_input_name(DetectInput in) { return in == DetectInput:
 // ESR input the densify stage, which then serves nothing, is switched off and costs nothing per frame;
 // on the dense input [densify] runs as configured. [detect] matcher_boundary turns the [boundary]
 // refinement on for these consumers, [detect] matcher_subpixel_every_segment the sub-pixel value of every
-// segment ([cost] subpixel_every_segment; docs/detection.md "Input map").
+// segment ([cost] subpixel_every_segment; docs/detection.md "Input map"), [detect] matcher_coarse_iterations and
+// matcher_iterations their SLIC rounds (docs/results.md "Session 44").
 inline MatcherParams detection_matcher_params(MatcherParams p, const ConfigValues& v) {
   if (detect_input_from(v) == DetectInput::Esr) p.densify.enabled = false;
   if (v.flag("detect.matcher_boundary")) p.boundary.enabled = true;
   if (v.flag("detect.matcher_subpixel_every_segment")) p.cost.subpixel_every_segment = true;
+  // [detect] matcher_coarse_iterations / matcher_iterations (-1 = as [segmentation]): the robot keeps the
+  // 4-round segmentation it was validated with while match / eval / bench default to the coarse start.
+  if (const int c = v.integer("detect.matcher_coarse_iterations"); c >= 0) p.seg.coarse_iterations = c;
+  if (const int n = v.integer("detect.matcher_iterations"); n >= 0) {
+    if (n == 0)
+      throw UserError("config: detect.matcher_iterations = 0 is out of range (valid: -1 = as [segmentation], or 1 to 20)");
+    p.seg.iterations = n;
+  }
   return p;
 }
 // The map of a match result that detection reads.

@@ -15,12 +15,8 @@ CONFIG = ROOT / "common" / "config"
 
 # profile -> the (section, field) pairs it may set, with their values
 PROFILES = {
-    "fast.toml": {("segmentation", "iterations"): 2, ("densify", "interpolate_max_diff"): 0},
-    "accurate.toml": {
-        ("segmentation", "coarse_iterations"): 1,
-        ("segmentation", "iterations"): 1,
-        ("boundary", "enabled"): True,
-    },
+    "fast.toml": {("detect", "matcher_iterations"): 2, ("densify", "interpolate_max_diff"): 0},
+    "accurate.toml": {("boundary", "enabled"): True},
 }
 
 

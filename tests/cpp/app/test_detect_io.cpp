@@ -42,4 +42,32 @@ TEST(DetectionMatcherParams, MatcherSubpixelEverySegmentTurnsTheRuleOnForDetecti
   EXPECT_TRUE(detection_matcher_params(cost.matcher, cost.values).cost.subpixel_every_segment);  // either switch
 }
 
+TEST(DetectionMatcherParams, SegmentationRoundsOfTheDetectionConsumersAreTheirOwn) {
+  // The defaults (session 44): match / eval / bench start coarse (1 + 1 rounds), detection and the robot keep 0 + 4.
+  const fs::Config def = fs::parse_config("", "t");
+  EXPECT_EQ(def.matcher.seg.coarse_iterations, 1);
+  EXPECT_EQ(def.matcher.seg.iterations, 1);
+  const fs::MatcherParams d = detection_matcher_params(def.matcher, def.values);
+  EXPECT_EQ(d.seg.coarse_iterations, 0);
+  EXPECT_EQ(d.seg.iterations, 4);
+
+  // -1: as [segmentation].
+  const fs::Config follow = fs::parse_config(
+      "[segmentation]\ncoarse_iterations = 2\niterations = 3\n[detect]\nmatcher_coarse_iterations = -1\nmatcher_iterations = -1\n",
+      "t");
+  const fs::MatcherParams f = detection_matcher_params(follow.matcher, follow.values);
+  EXPECT_EQ(f.seg.coarse_iterations, 2);
+  EXPECT_EQ(f.seg.iterations, 3);
+
+  // 0 full-resolution rounds is refused with the field and its valid values named.
+  const fs::Config zero = fs::parse_config("[detect]\nmatcher_iterations = 0\n", "t");
+  try {
+    (void)detection_matcher_params(zero.matcher, zero.values);
+    FAIL() << "matcher_iterations = 0 was accepted";
+  } catch (const fs::UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("detect.matcher_iterations"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("1 to 20"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace

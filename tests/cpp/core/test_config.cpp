@@ -17,8 +17,8 @@ std::string error_of(const std::string& toml) {
 TEST(Config, DefaultsLoadAndMatchTheStruct) {
   const MatcherParams p = load_matcher_config("");
   EXPECT_EQ(p.seg.region_size, 8);
-  EXPECT_EQ(p.seg.coarse_iterations, 0);
-  EXPECT_EQ(p.seg.iterations, 4);
+  EXPECT_EQ(p.seg.coarse_iterations, 1);  // session 44: the coarse start for match / eval / bench
+  EXPECT_EQ(p.seg.iterations, 1);
   EXPECT_EQ(p.cost.max_disparity, 64);
   EXPECT_DOUBLE_EQ(p.cost.alpha, 0.2);
   EXPECT_TRUE(p.esr.enabled);
