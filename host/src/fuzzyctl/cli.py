@@ -759,6 +759,40 @@ def track_replay_cmd(run_dirs: tuple[Path, ...], sets: tuple[str, ...], json_out
     _write_json(json_out, r)
 
 
+@app.command("give-up-replay", short_help="What [loop] give_up_after_s would have done on run records.")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--after", "afters", default="12,15,20", show_default=True, metavar="S[,S...]",
+              help="give_up_after_s values to try [s], comma-separated.")
+@click.option("--contact-margin", type=click.FloatRange(0.0), default=1.0, show_default=True,
+              help="A contact counts as avoided only when the rule held this long before it [s].")
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the result as JSON.")
+def give_up_replay_cmd(run_dirs: tuple[Path, ...], afters: str, contact_margin: float, json_out: Path | None) -> None:
+    """The rule of [loop] give_up_after_s (stop for good after no progress with a blocked plan since the last
+    progress; docs/robot.md "Session 44") on recorded runs (run directories, or a suite's record directory).
+    The rule only ends runs, so the first frame where it holds, against how the run ended, is its effect:
+    an arrival lost, a safe stop gained (a run without a free path that timed out), a contact avoided, or an
+    earlier stop. Record with the rule off (give_up_after_s = 0)."""
+    from .giveupreplay import EFFECTS, give_up_replay
+
+    try:
+        values = [float(v) for v in afters.split(",") if v.strip()]
+    except ValueError:
+        raise FatalError(f"--after: expected seconds separated by commas, e.g. 12,15,20 (got '{afters}')") from None
+    r = give_up_replay(list(run_dirs), values, contact_margin)
+    t = Table(title=f"give_up_after_s on {r['records']} recorded runs")
+    t.add_column("after s", justify="right")
+    for e in EFFECTS:
+        t.add_column(e, justify="right")
+    for row in r["afters"]:
+        t.add_row(f"{row['after_s']:g}", *(str(row["counts"][e]) for e in EFFECTS))
+    console.print(t)
+    for row in r["afters"]:
+        for c in row["changed"]:
+            console.print(f"  {row['after_s']:g} s: {c['run']}: {c['status']} at {c['end_s']:.1f} s -> stop at "
+                          f"{c['give_up_s']:.1f} s ({c['effect']})")
+    _write_json(json_out, r)
+
+
 def _planned(p: dict | None) -> str:
     """The contacts table's "planned" cell: frames of the last second with the obstacle in the planner's
     list / frames with the list recorded, and the kinds covering it at the last of them."""
