@@ -1437,21 +1437,15 @@ LoopResult RobotLoop::run() {
       end_status = "reached";
       break;
     }
-    if (gave_up) {
+    // The safe stops end the run once the wheels stand: giving up ([loop] give_up_after_s), or no path for
+    // blocked_frames_to_stop frames (after the look-around turn).
+    const char* safe_stop = gave_up ? "no_progress_stop" : blocked_run >= blocked_frames_to_stop ? "blocked_stop" : nullptr;
+    if (safe_stop != nullptr) {
       const double speed = I.sim_motors ? std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps())
                                         : std::fabs(applied.v) + std::fabs(applied.omega);
       if (speed < 1e-3) {
         res.safe_stop = !res.collided;
-        end_status = "no_progress_stop";
-        break;
-      }
-    }
-    if (blocked_run >= blocked_frames_to_stop) {
-      const double speed = I.sim_motors ? std::fabs(I.sim_motors->wheel_left_mps()) + std::fabs(I.sim_motors->wheel_right_mps())
-                                        : std::fabs(applied.v) + std::fabs(applied.omega);
-      if (speed < 1e-3) {
-        res.safe_stop = !res.collided;
-        end_status = "blocked_stop";
+        end_status = safe_stop;
         break;
       }
     }
