@@ -92,6 +92,7 @@ PlannerParams planner_params_from(const ConfigValues& v) {
   p.unseen_check_s = v.num("planner.unseen_check_s");
   p.w_memory = v.num("planner.w_memory");
   p.max_lateral_accel_mps2 = v.num("planner.max_lateral_accel_mps2");
+  p.speed_follows_heading = v.flag("planner.speed_follows_heading");
   return p;
 }
 

@@ -468,6 +468,12 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   double escape_gap = -std::numeric_limits<double>::infinity();
   BodyTwist escape{};
   const double carrot_dist0 = norm(out.carrot - pos);
+  // The speed the w_speed term rewards: full speed, or with [planner] speed_follows_heading full speed times the
+  // cosine of the heading error to the carrot (0 from 90 deg on: slow down and turn on the spot when facing away).
+  const double vmax_ref = std::max(1e-6, rp_.max_speed_mps);
+  const double v_ref = pp_.speed_follows_heading && carrot_dist0 > 1e-3
+                           ? vmax_ref * std::max(0.0, std::cos(bearing_of(pose, out.carrot)))
+                           : vmax_ref;
   const bool check_seen = pp_.unseen_check_s > 0 && static_cast<bool>(ctx.recently_seen);
   const double lead = rp_.radius_m + pp_.safety_margin_m;
   const bool use_memory = pp_.w_memory > 0 && ctx.memory != nullptr && !ctx.memory->empty();
@@ -501,7 +507,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
       const double soft = pp_.safety_margin_m + rp_.radius_m;
       const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
       const double cost = pp_.w_heading * heading / M_PI + pp_.w_progress * progress +
-                          pp_.w_clearance * clear_pen + pp_.w_speed * (1.0 - v / std::max(1e-6, rp_.max_speed_mps)) +
+                          pp_.w_clearance * clear_pen + pp_.w_speed * (pp_.speed_follows_heading ? std::abs(v_ref - v) / vmax_ref : 1.0 - v / vmax_ref) +
                           2.0 * collide_pen +
                           (use_memory ? pp_.w_memory * memory_depth(pose, v, w, *ctx.memory, pp_, rp_) : 0.0);
       if (cost < best_cost) {

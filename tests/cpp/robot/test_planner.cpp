@@ -175,6 +175,34 @@ TEST(Planner, LateralAccelerationLimitKeepsSharpTurnsSlow) {
   EXPECT_GT(spot.cmd.omega, 0.1);
 }
 
+// [planner] speed_follows_heading: a robot at speed whose carrot lies behind it keeps its speed and loops round
+// without the option; with it, it slows down (the rewarded speed is max_speed * max(0, cos e)). Facing the goal,
+// both give the same command.
+TEST(Planner, SpeedFollowsHeadingSlowsARobotFacingAwayFromItsCarrot) {
+  PlannerParams pp = planner();
+  const RobotParams rp = robot();
+  const Pose2D start{0, 0, 0};
+  const BodyTwist moving{0.3, 0.0};
+  const Vec2 behind{-2.0, 0.3};
+  pp.speed_follows_heading = false;
+  const PlanOutput loop = Planner(pp, rp).plan(start, moving, behind, {});
+  ASSERT_EQ(loop.status, PlanStatus::kMoving);
+  EXPECT_GE(loop.cmd.v, 0.25);  // keeps its speed, turning
+  pp.speed_follows_heading = true;
+  const PlanOutput slow = Planner(pp, rp).plan(start, moving, behind, {});
+  ASSERT_EQ(slow.status, PlanStatus::kMoving);
+  EXPECT_LT(slow.cmd.v, loop.cmd.v - 0.1);  // brakes as hard as the window allows
+  EXPECT_GT(slow.cmd.omega, 0.1);           // and turns left, towards the goal
+  // Facing the goal, the option changes nothing.
+  const Vec2 ahead{4.0, 0.0};
+  pp.speed_follows_heading = false;
+  const PlanOutput a = Planner(pp, rp).plan(start, moving, ahead, {});
+  pp.speed_follows_heading = true;
+  const PlanOutput b = Planner(pp, rp).plan(start, moving, ahead, {});
+  EXPECT_DOUBLE_EQ(a.cmd.v, b.cmd.v);
+  EXPECT_DOUBLE_EQ(a.cmd.omega, b.cmd.omega);
+}
+
 TEST(Planner, ReachedStops) {
   const Planner p(planner(), robot());
   const PlanOutput o = p.plan({1.0, 1.0, 0}, {0.2, 0}, {1.05, 1.0}, {});

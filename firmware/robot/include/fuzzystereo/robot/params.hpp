@@ -120,6 +120,9 @@ struct PlannerParams {
   double max_lateral_accel_mps2 = 0.0;  // arcs with v |omega| above this are not driven: a sharp turn
                                         // at speed sweeps the body into ground the forward camera has
                                         // not seen (docs/robot.md "Session 32"); 0 = off [m/s^2]
+  bool speed_follows_heading = false;  // the w_speed term rewards vmax * max(0, cos e) instead of vmax,
+                                       // e = heading error to the carrot: facing away from it, the robot
+                                       // slows and turns on the spot (docs/robot.md "Session 44")
 };
 
 // [watchdog]
