@@ -42,6 +42,7 @@ inline MatcherParams detection_matcher_params(MatcherParams p, const ConfigValue
       throw UserError("config: detect.matcher_iterations = 0 is out of range (valid: -1 = as [segmentation], or 1 to 20)");
     p.seg.iterations = n;
   }
+  if (const int k = v.integer("detect.matcher_nmi_candidates"); k >= 0) p.cost.nmi_candidates = k;
   return p;
 }
 // The map of a match result that detection reads.

@@ -70,4 +70,12 @@ TEST(DetectionMatcherParams, SegmentationRoundsOfTheDetectionConsumersAreTheirOw
   }
 }
 
+TEST(DetectionMatcherParams, NmiCandidatesOfTheDetectionConsumersFollowCostUnlessSet) {
+  const fs::Config def = fs::parse_config("[cost]\nnmi_candidates = 2\n", "t");
+  EXPECT_EQ(detection_matcher_params(def.matcher, def.values).cost.nmi_candidates, 2);  // -1: as [cost]
+  const fs::Config own = fs::parse_config("[cost]\nnmi_candidates = 2\n[detect]\nmatcher_nmi_candidates = 8\n", "t");
+  EXPECT_EQ(detection_matcher_params(own.matcher, own.values).cost.nmi_candidates, 8);
+  EXPECT_EQ(own.matcher.cost.nmi_candidates, 2);  // match / eval / bench follow [cost] alone
+}
+
 }  // namespace
