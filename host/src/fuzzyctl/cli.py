@@ -815,17 +815,9 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     from rich.table import Table
 
     from .contacts import contacts
+    from .runreport import expand_run_dirs
 
-    dirs: list[Path] = []
-    for d in run_dirs:
-        if (d / "run.json").is_file():
-            dirs.append(d)
-        else:
-            sub = sorted(p for p in d.iterdir() if (p / "run.json").is_file()) if d.is_dir() else []
-            if not sub:
-                raise FatalError(f"{d}: neither a run record (run.json) nor a directory of them")
-            dirs.extend(sub)
-    r = contacts(dirs)
+    r = contacts(expand_run_dirs(list(run_dirs)))
     opt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     t = Table(title=f"contacts: {len(r['contacts'])} of {r['records']} records")
     for col in ("run", "t s", "class", "obst", "mover v", "bearing deg", "robot v, w", "seen s ago", "tracked s ago", "track",

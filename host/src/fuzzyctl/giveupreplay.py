@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import FatalError
-from .runreport import load_run, load_run_config
+from .runreport import expand_run_dirs, load_run, load_run_config
 
 #: Effects of the rule on one run, in the order of the summary table.
 EFFECTS = ("arrival lost", "safe stop gained", "contact avoided", "earlier safe stop", "timeout -> stop", "ended earlier")
@@ -69,27 +69,11 @@ def effect(result: dict[str, Any], fire_t: float | None, contact_margin_s: float
     return "ended earlier"
 
 
-def _expand(run_dirs: list[Path]) -> list[Path]:
-    """Run directories as given, or the runs of a suite's record directory (its */run.json)."""
-    out: list[Path] = []
-    for d in run_dirs:
-        d = Path(d)
-        if (d / "run.json").is_file():
-            out.append(d)
-            continue
-        inner = sorted(p.parent for p in d.glob("*/run.json"))
-        if not inner:
-            raise FatalError(f"{d}: no run record (run.json) in it or in its subdirectories "
-                             "(record with `fuzzystereo sim suite --record DIR` or `run --record DIR`)")
-        out.extend(inner)
-    return out
-
-
 def give_up_replay(run_dirs: list[Path], afters: list[float], contact_margin_s: float = 1.0) -> dict[str, Any]:
     """Per value of give_up_after_s: the runs it would have ended, and how (EFFECTS)."""
     if not afters or any(a <= 0 for a in afters):
         raise FatalError(f"--after: give_up_after_s values must be > 0 s (got {afters})")
-    dirs = _expand(list(run_dirs))
+    dirs = expand_run_dirs(list(run_dirs))
     runs = []
     for d in dirs:
         run, frames = load_run(d)

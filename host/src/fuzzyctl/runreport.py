@@ -300,6 +300,22 @@ def _run_dirs(record_dir: Path) -> list[Path]:
     return sorted(p.parent for p in Path(record_dir).glob("*/run.json"))
 
 
+def expand_run_dirs(paths: list[Path]) -> list[Path]:
+    """Run record directories as given, or the runs of a suite's record directory (its */run.json);
+    FatalError naming a path that is neither."""
+    out: list[Path] = []
+    for d in map(Path, paths):
+        if (d / "run.json").is_file():
+            out.append(d)
+            continue
+        inner = _run_dirs(d)
+        if not inner:
+            raise FatalError(f"{d}: no run record (run.json) in it or in its subdirectories "
+                             "(record with `fuzzystereo sim suite --record DIR` or `run --record DIR`)")
+        out.extend(inner)
+    return out
+
+
 def _contact_text(run_dir: Path) -> str:
     """The contact class of a run record and the bearing of the obstacle hit ('' without a contact or
     without the simulated truth)."""
