@@ -58,6 +58,23 @@ double wall_ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+}  // namespace
+
+// The simulator's exact left disparity as the matcher's output would be (Q4, kInvalidDisp where the
+// matcher cannot measure): no hit (sky) and disparities outside its search range [0, max_disparity)
+// are invalid. LoopOptions::oracle_disparity.
+ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity) {
+  ImageI16 out(disparity_px.width, disparity_px.height, kInvalidDisp);
+  for (std::size_t i = 0; i < disparity_px.data.size(); ++i) {
+    const float d = disparity_px.data[i];
+    if (d > 0.0f && d < static_cast<float>(max_disparity))
+      out.data[i] = static_cast<std::int16_t>(std::lround(double(d) * kDispScale));
+  }
+  return out;
+}
+
+namespace {
+
 // BT.601 luma in integers, the same weights OpenCV's cvtColor uses (R 0.299, G 0.587, B 0.114).
 ImageU8 rgb_to_gray(const ImageRgb8& rgb) {
   ImageU8 g(rgb.width, rgb.height);
@@ -414,6 +431,8 @@ LoopResult RobotLoop::run() {
       if (time_limit_s <= 0) time_limit_s = m->time_limit_s;
     }
   } else {
+    if (opt.oracle_disparity)
+      throw UserError("--oracle-disparity needs the simulator (--source sim:SCENE): other sources have no ground truth");
     const capture::CameraParams cp = capture::camera_params_from(I.cfg.values);
     I.camera = open_stereo_source(opt.source, cp);
     if (!cp.calibration.empty()) {
@@ -804,7 +823,9 @@ LoopResult RobotLoop::run() {
 
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
-    const ImageI16& det_disp = detection_disparity(mr, det_input);  // [detect] input
+    ImageI16 oracle_disp;
+    if (opt.oracle_disparity) oracle_disp = oracle_disparity_q4(rr.disparity, I.cfg.matcher.cost.max_disparity);
+    const ImageI16& det_disp = opt.oracle_disparity ? oracle_disp : detection_disparity(mr, det_input);  // [detect] input
     const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
     // Ground seen ahead ([robot] ground_ahead_min_pct, docs/robot.md "Session 32"): the share
     // of the corridor's ground band that the detector explained as road or as an obstacle (the map

@@ -51,6 +51,11 @@ struct LoopOptions {
   // Turn once on the spot before driving (sim suite default: the camera sees 74 deg, an obstacle
   // beside the start is unknown otherwise).
   bool look_around = false;
+  // Simulator diagnostic (docs/robot.md "Session 45"): the detector, the map and the tracker read the
+  // rendered ground-truth disparity, limited to the matcher's search range [0, max_disparity), instead
+  // of the matcher's map. The matcher still runs (its timings and the perception health stay real).
+  // Separates what the matcher's errors cost the robot from what the rest of the loop costs.
+  bool oracle_disparity = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
@@ -58,6 +63,10 @@ struct LoopOptions {
   // While this returns true (link e-stop / pause) the motors stay stopped and no plan is made.
   std::function<bool()> hold;
 };
+
+// The simulator's exact left disparity [px] as a matcher map: Q4, kInvalidDisp where d <= 0 (sky) or
+// d >= max_disparity (outside the search range). LoopOptions::oracle_disparity.
+ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity);
 
 struct StageStat {
   double median = 0, p90 = 0, max = 0;

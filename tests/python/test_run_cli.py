@@ -343,3 +343,36 @@ def test_commanded_odometry_follows_the_wheels_on_the_wall_clock(firmware_bin, t
     assert last["true_pose"][0] > 0.3, last  # it drove
     err = ((last["pose"][0] - last["true_pose"][0]) ** 2 + (last["pose"][1] - last["true_pose"][1]) ** 2) ** 0.5
     assert err < bound, (err, last["pose"], last["true_pose"])
+
+
+def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tmp_path):
+    # `--oracle-disparity` (docs/robot.md "Session 45") feeds the loop's detector the rendered ground truth:
+    # its first frame's detections are those of `detect --disparity` on `sim render`'s ground truth of the
+    # same scene (the matcher's differ), the robot still reaches its goal, and a source without ground
+    # truth refuses the flag by name.
+    scene = common_dir / "sim/scenes/mission.toml"
+    out = tmp_path / "r.json"
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle-disparity", "--json", str(out),
+            "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["status"] == "reached" and not r["collided"], r
+    first = json.loads((tmp_path / "rec" / "frames.jsonl").read_text().splitlines()[0])
+
+    rend = tmp_path / "render"
+    assert run(firmware_bin, "sim", "render", str(scene), "--out", str(rend)).returncode == 0
+    p = run(firmware_bin, "detect", "--left", str(rend / "left.png"), "--disparity", str(rend / "disp_gt.png"),
+            "--calib", str(rend / "calib_cam_to_cam.txt"), "--out", str(tmp_path / "det"))
+    assert p.returncode == 0, p.stderr
+    exact = json.loads((tmp_path / "det" / "obstacles.json").read_text())["obstacles"]
+    assert exact
+    assert [(d["box"], d["distance_m"]) for d in first["detections"]] == [(o["box"], o["distance_m"]) for o in exact]
+
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--max-frames", "1",
+            "--record", str(tmp_path / "rec_m"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    matched = json.loads((tmp_path / "rec_m" / "frames.jsonl").read_text().splitlines()[0])
+    assert [d["box"] for d in matched["detections"]] != [d["box"] for d in first["detections"]]
+
+    p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-disparity", "--max-frames", "1")
+    assert p.returncode != 0 and "--oracle-disparity needs the simulator" in p.stderr, p.stderr
