@@ -190,6 +190,8 @@ MatcherParams to_params(const Values& v) {
   p.densify.occlusion_fill = v.flag("densify.occlusion_fill");
   p.densify.occlusion_dilate = i("densify.occlusion_dilate");
   p.densify.occlusion_max_gap = i("densify.occlusion_max_gap");
+  p.densify.border_fit_px = i("densify.border_fit_px");
+  p.densify.border_fit_min_slope = v.num("densify.border_fit_min_slope");
   p.densify.smooth = v.flag("densify.smooth");
   p.densify.smoothing.radius = i("densify.smooth_radius");
   p.densify.smoothing.step = i("densify.smooth_step");
@@ -308,6 +310,8 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff
     << "\nocclusion_fill = " << (p.densify.occlusion_fill ? "true" : "false")
     << "\nocclusion_dilate = " << p.densify.occlusion_dilate << "\nocclusion_max_gap = " << p.densify.occlusion_max_gap
+    << "\nborder_fit_px = " << p.densify.border_fit_px << "\nborder_fit_min_slope = " << fmt_num(p.densify.border_fit_min_slope)
+    << (p.densify.border_fit_min_slope == std::floor(p.densify.border_fit_min_slope) ? ".0" : "")
     << "\nsmooth = " << (p.densify.smooth ? "true" : "false") << "\nsmooth_radius = " << p.densify.smoothing.radius
     << "\nsmooth_step = " << p.densify.smoothing.step << "\nsmooth_sigma_space = " << fmt_num(p.densify.smoothing.sigma_space)
     << (p.densify.smoothing.sigma_space == std::floor(p.densify.smoothing.sigma_space) ? ".0" : "")

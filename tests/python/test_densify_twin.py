@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fuzzyctl import dump as dm
-from fuzzyctl.reference.densify import densify, median_fill, occlusion_fill, seen_by_right, smooth_disparity
+from fuzzyctl.reference.densify import densify, extrapolate_left_border, median_fill, occlusion_fill, seen_by_right, smooth_disparity
 
 
 def _slanted_band(w: int = 61, h: int = 21) -> tuple[np.ndarray, np.ndarray]:
@@ -81,10 +81,10 @@ def _kitti_pair(datasets_root):
     return left, right
 
 
-def _firmware_dump(firmware_bin, left, right, out, smooth: bool):
+def _firmware_dump(firmware_bin, left, right, out, smooth: bool, extra: str = ""):
     # KITTI 2015 000046 at half size: a road, slanted in disparity, with holes after eq. (13).
     cfg = out.with_suffix(".toml")
-    cfg.write_text(f"[densify]\nsmooth = {'true' if smooth else 'false'}\n")
+    cfg.write_text(f"[densify]\nsmooth = {'true' if smooth else 'false'}\n{extra}")
     proc = subprocess.run([str(firmware_bin), "match", "--left", str(left), "--right", str(right), "--downscale", "2",
                            "--max-disparity", "80", "--config", str(cfg), "--out", str(out), "--dump"],
                           capture_output=True, text=True)
@@ -123,3 +123,35 @@ def test_firmware_smoothing_matches_the_twin(firmware_bin, datasets_root, tmp_pa
     assert float(np.mean(diff <= 1.0 / 32 + 1e-9)) >= 0.98
     assert diff.max() <= 1.0 / 16
     assert float(np.mean(np.abs(rough - smooth)[~np.isnan(rough)] > 1.0 / 16)) > 0.2  # it did change the map
+
+
+def test_border_extrapolation_continues_a_receding_surface_and_leaves_flat_rows():
+    # Row 0: a surface receding from the left edge (d = 50 - 0.5 x), estimates from x = 20 on; row 1 flat;
+    # row 2 rising towards the border by 0.1 px per column only.
+    x = np.arange(60, dtype=float)
+    before = np.vstack([50 - 0.5 * x, np.full(60, 12.0), 30 - 0.1 * x])
+    before[:, :20] = np.nan
+    out = np.where(np.isnan(before), -1.0, before)
+    assert extrapolate_left_border(out, before, 16, cap=45.0) == 2
+    np.testing.assert_allclose(out[0, 10:20], 50 - 0.5 * x[10:20])
+    np.testing.assert_array_equal(out[0, :10], 45.0)  # capped below the search range
+    np.testing.assert_array_equal(out[1, :20], -1.0)  # flat: the fill stays
+    np.testing.assert_allclose(out[2, :20], 30 - 0.1 * x[:20])
+    out2 = np.where(np.isnan(before), -1.0, before)
+    assert extrapolate_left_border(out2, before, 16, min_slope=0.2) == 1  # row 2 is not steep enough
+    np.testing.assert_array_equal(out2[2, :20], -1.0)
+
+
+@pytest.mark.firmware
+@pytest.mark.datasets
+def test_firmware_border_extrapolation_matches_the_twin(firmware_bin, datasets_root, tmp_path):
+    # [densify] border_fit_px on the KITTI dump: the twin extends the same rows by the same lines (Q4 rounding).
+    left, right = _kitti_pair(datasets_root)
+    d = _firmware_dump(firmware_bin, left, right, tmp_path / "fw", smooth=False, extra="border_fit_px = 40\n")
+    plain = _firmware_dump(firmware_bin, left, right, tmp_path / "plain", smooth=False)
+    esr, final = d.disp("disp_esr"), d.disp("disp_final")
+    twin, _ = densify(esr, True, 100, 3.0, True, interpolate_max_diff=8.0, disp_right=d.disp("disp_right_wta"),
+                      border_fit=(40, 0.0, 80))
+    changed = final != plain.disp("disp_final")
+    assert changed.sum() > 100, "the option changed too little of the frame for the check to mean anything"
+    assert float(np.mean(np.abs(twin - final)[changed] <= 1.0 / 32 + 1e-9)) >= 0.999

@@ -169,7 +169,7 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
   clock.lap(Stage::Esr);
 
   if (p.densify.enabled) {                                                              // not in the paper
-    r.disp_final = densify(r.disp_esr, p.densify, &r.densify_changed, &r.disp_right_wta);
+    r.disp_final = densify(r.disp_esr, p.densify, &r.densify_changed, &r.disp_right_wta, p.cost.max_disparity);
   } else {
     r.disp_final = r.disp_esr;
     r.densify_changed = ImageU8(left.width, left.height, 0);

@@ -258,7 +258,7 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
     values["esr_replaced_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_rep == (d["esr_replaced"] != 0)))
     fw_esr = d.disp("disp_esr") if "disp_esr" in d else d.disp("disp_final")  # dumps before the densify stage
     values["final_isolated_within_0px_pct"] = map_agreement(fw_esr, reference_q4(iso_final), 0)
-    iso_dense, _ = densify_config(fw_esr, fw_wta_r, cfg.densify)
+    iso_dense, _ = densify_config(fw_esr, fw_wta_r, cfg.densify, cfg.cost.max_disparity)
     values["densify_isolated_within_1px_pct"] = map_agreement(d.disp("disp_final"), reference_q4(iso_dense), 1)
     values["reference_fis_check_error"] = r.fis_check_error
     values["final_valid_firmware_pct"] = 100.0 * float(np.mean(d["disp_final"] != dumpmod.INVALID_DISP))

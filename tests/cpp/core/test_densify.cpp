@@ -417,10 +417,85 @@ TEST(Densify, ZeroCountsAsNoEstimateAndDisabledFillKeepsHoles) {
   EXPECT_EQ(densify(d, p, nullptr).at(2, 1), kInvalidDisp);
 }
 
+// Left border extrapolation (docs/algorithm.md 6f) against a double-precision least-squares fit:
+// random rows with a border band, random estimates (some invalid) after it.
+TEST(Densify, BorderExtrapolationMatchesLeastSquaresReference) {
+  std::mt19937 rng(45);
+  std::uniform_int_distribution<int> band(0, 60), val(0, 150 * kDispScale), pct(0, 99), slope(-40, 40);
+  const int w = 173, h = 61, window = 23, cap = 127 * kDispScale;
+  ImageI16 before(w, h, kInvalidDisp);
+  for (int y = 0; y < h; ++y) {
+    const int x0 = band(rng), v0 = val(rng), s = slope(rng);
+    for (int x = x0; x < w; ++x)
+      before.at(x, y) = (x > x0 && pct(rng) < 20) ? kInvalidDisp
+                                                  : static_cast<std::int16_t>(std::clamp(v0 + s * (x - x0) / 4 + pct(rng) % 9 - 4, 0, 32767));
+  }
+  ImageI16 out = before;
+  for (auto& v : out.data)
+    if (v == kInvalidDisp) v = 7;  // stands for the median fill
+  const ImageI16 filled = out;
+  const int rows = extrapolate_left_border(out, before, window, cap);
+  int expect_rows = 0;
+  for (int y = 0; y < h; ++y) {
+    int x0 = 0;
+    while (x0 < w && before.at(x0, y) == kInvalidDisp) ++x0;
+    std::vector<double> xs, ds;
+    for (int x = x0; x < std::min(w, x0 + window); ++x)
+      if (before.at(x, y) != kInvalidDisp) xs.push_back(x), ds.push_back(before.at(x, y));
+    const double n = double(xs.size());
+    bool extrapolated = false;
+    double a = 0, b = 0;
+    if (x0 > 0 && x0 < w && n >= std::max(3, window / 4)) {
+      const double mx = std::accumulate(xs.begin(), xs.end(), 0.0) / n, md = std::accumulate(ds.begin(), ds.end(), 0.0) / n;
+      double sxx = 0, sxd = 0;
+      for (std::size_t i = 0; i < xs.size(); ++i) sxx += (xs[i] - mx) * (xs[i] - mx), sxd += (xs[i] - mx) * (ds[i] - md);
+      b = sxd / sxx;
+      a = md - b * mx;
+      extrapolated = sxd < 0;
+    }
+    expect_rows += extrapolated;
+    for (int x = 0; x < w; ++x) {
+      if (x >= x0 || !extrapolated) {
+        ASSERT_EQ(out.at(x, y), filled.at(x, y)) << x << "," << y;
+        continue;
+      }
+      const double v = std::min(a + b * x, double(cap));
+      ASSERT_LE(std::abs(out.at(x, y) - v), 0.5 + 1e-6) << x << "," << y;
+    }
+  }
+  EXPECT_EQ(rows, expect_rows);
+  EXPECT_GT(rows, 10);
+  // the slope threshold: none of these rows rises by 50 px per column
+  ImageI16 again = filled;
+  EXPECT_EQ(extrapolate_left_border(again, before, window, cap, 50.0 * kDispScale), 0);
+  EXPECT_EQ(again.data, filled.data);
+}
+
+TEST(Densify, BorderExtrapolationContinuesASurfaceRecedingFromTheLeftEdge) {
+  // A near car side at the left edge: d = 140 - 0.25 x px; the matcher found it from x = 120 on only.
+  ImageI16 d(300, 3, kInvalidDisp);
+  for (int y = 0; y < 3; ++y)
+    for (int x = 120; x < 300; ++x) d.at(x, y) = static_cast<std::int16_t>((140 * 4 - x) * kDispScale / 4);
+  DensifyParams p;
+  p.occlusion_fill = false;
+  p.smooth = false;
+  p.speckle_max_size = 0;
+  const ImageI16 nearest = densify(d, p, nullptr);
+  EXPECT_EQ(nearest.at(0, 1), d.at(120, 1));  // the nearest estimate: 110 px
+  p.border_fit_px = 40;
+  const ImageI16 fitted = densify(d, p, nullptr, nullptr, 160);
+  EXPECT_EQ(fitted.at(0, 1), 140 * kDispScale);
+  EXPECT_EQ(fitted.at(60, 1), 125 * kDispScale);
+  EXPECT_EQ(densify(d, p, nullptr, nullptr, 130).at(0, 1), 129 * kDispScale);  // capped below the search range
+}
+
 TEST(Densify, ConfigSectionReachesTheParams) {
   const MatcherParams p = parse_matcher_config(
       "[densify]\nenabled = false\nspeckle_max_size = 7\ninterpolate_max_diff = 3\nocclusion_fill = false\nocclusion_dilate = 2\n"
-      "occlusion_max_gap = 9\n", "t.toml");
+      "occlusion_max_gap = 9\nborder_fit_px = 40\nborder_fit_min_slope = 0.1\n", "t.toml");
+  EXPECT_EQ(p.densify.border_fit_px, 40);
+  EXPECT_DOUBLE_EQ(p.densify.border_fit_min_slope, 0.1);
+  EXPECT_THROW(parse_matcher_config("[densify]\nborder_fit_px = 257\n", "t.toml"), ConfigError);
   EXPECT_FALSE(p.densify.occlusion_fill);
   EXPECT_EQ(p.densify.occlusion_dilate, 2);
   EXPECT_EQ(p.densify.occlusion_max_gap, 9);

@@ -83,6 +83,9 @@ struct DensifyParams {
   bool occlusion_fill = true;  // holes no right pixel sees take their row's background first (6c)
   int occlusion_dilate = 1;    // [px] a right pixel's hit also covers this many left pixels each side
   int occlusion_max_gap = 64;  // [px] longer runs of holes are left to the median fill
+  int border_fit_px = 0;       // [px] (<= 256) left border band: extrapolate the line fitted to the row's first estimates in
+                               // this many columns where it rises towards the border (6f; 0 = nearest estimate)
+  double border_fit_min_slope = 0.0;  // [px per column] ... by at least this much
   bool smooth = true;          // edge-preserving smoothing after the fill (6d)
   SmoothParams smoothing;
 };

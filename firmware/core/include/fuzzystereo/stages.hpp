@@ -194,7 +194,17 @@ ImageI16 median_fill(const ImageI16& disp, ImageU8* filled, int interp_max_diff_
 // occlusion_fill when p.occlusion_fill (disp_right required then, else std::invalid_argument), then
 // median_fill (with p.interpolate_max_diff) when p.fill. changed (optional): 0 kept, 1 filled, 2 zero or removed
 // as a speckle (then filled when p.fill).
-ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed, const ImageI16* disp_right = nullptr);
+// Then, when p.border_fit_px > 0, extrapolate_left_border on the filled map (max_disparity > 0 caps its values
+// below max_disparity px), then smooth_disparity when p.smooth.
+ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed, const ImageI16* disp_right = nullptr,
+                 int max_disparity = 0);
+// Left border band extrapolation (docs/algorithm.md 6f; not in the paper). Per row of `before` (the map
+// the fill started from, Q4) whose first estimate is at x0 > 0: the least-squares line d = a + b x
+// through its estimates in [x0, x0 + window_px) (at least 3 and a quarter of the window); when it
+// rises towards the border (b < 0), out's pixels [0, x0) take its value, rounded to nearest
+// (exact integer arithmetic) and capped at cap_q4 (> 0); otherwise they stay as they are. Returns
+// the number of rows extrapolated.
+int extrapolate_left_border(ImageI16& out, const ImageI16& before, int window_px, int cap_q4, double min_slope_q4 = 0.0);
 // Occlusion fill (p.occlusion_fill, between speckle removal and the median fill; needs disp_right,
 // the right-reference WTA map): a left pixel without an estimate that no right pixel sees
 // (xr + round(d_r(xr)) misses it by more than `dilate` px) is taken as occluded in the right image.

@@ -398,7 +398,58 @@ int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int m
   return count;
 }
 
-ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed, const ImageI16* disp_right) {
+// Left border band, docs/algorithm.md 6f. Columns count from x0 (u = x - x0; images up to 8192 wide)
+// and the window holds at most 256 columns, so int64 is exact throughout: S_d < 2^23 (Q4 d < 2^15),
+// den = n^2 var(u) < 2^29, |bnum| = n^2 |cov(u, d)| <= sqrt(den) n 2^15 < 2^37 (Cauchy-Schwarz) and
+// |n u - S_u| < 2^22, so the numerator S_d den + bnum (n u - S_u) < 2^60; the rounding is exact and the
+// same on every platform.
+int extrapolate_left_border(ImageI16& out, const ImageI16& before, int window_px, int cap_q4, double min_slope_q4) {
+  if (window_px <= 0) return 0;
+  if (window_px > 256) throw std::invalid_argument("extrapolate_left_border: window above 256 columns");
+  if (before.width != out.width || before.height != out.height)
+    throw std::invalid_argument("extrapolate_left_border: maps of different sizes");
+  const int w = before.width, h = before.height;
+  const int min_n = std::max(3, window_px / 4);
+  int rows = 0;
+  for (int y = 0; y < h; ++y) {
+    const std::int16_t* b = before.row(y);
+    int x0 = 0;
+    while (x0 < w && b[x0] == kInvalidDisp) ++x0;
+    if (x0 == 0 || x0 == w) continue;
+    std::int64_t n = 0, su = 0, sd = 0, suu = 0, sud = 0;
+    for (int x = x0; x < std::min(w, x0 + window_px); ++x) {
+      if (b[x] == kInvalidDisp) continue;
+      const std::int64_t u = x - x0;
+      ++n;
+      su += u;
+      sd += b[x];
+      suu += u * u;
+      sud += u * b[x];
+    }
+    if (n < min_n) continue;
+    const std::int64_t den = n * suu - su * su;   // n^2 var(u) > 0 (>= 3 distinct columns)
+    const std::int64_t bnum = n * sud - su * sd;  // slope b = bnum / den [Q4 per column]
+    if (den <= 0 || bnum >= 0) continue;          // flat or falling towards the border: keep the fill
+    if (min_slope_q4 > 0 && -static_cast<double>(bnum) < min_slope_q4 * static_cast<double>(den)) continue;
+    std::int16_t* o = out.row(y);
+    const std::int64_t dd = n * den, q2 = 2 * dd;  // > 0
+    for (int x = 0; x < x0; ++x) {
+      // d(u) = S_d / n + b (u - S_u / n) = (S_d den + bnum (n u - S_u)) / (n den), rounded half up (floor of
+      // (2 num + dd) / (2 dd); num > 0 here: b < 0 and u < 0 <= S_u / n)
+      const std::int64_t u = x - x0;
+      const std::int64_t num = sd * den + bnum * (n * u - su);
+      const std::int64_t t = 2 * num + dd;
+      std::int64_t q = t >= 0 ? t / q2 : -((-t + q2 - 1) / q2);
+      if (cap_q4 > 0) q = std::min<std::int64_t>(q, cap_q4);
+      o[x] = static_cast<std::int16_t>(std::clamp<std::int64_t>(q, 0, 32767));
+    }
+    ++rows;
+  }
+  return rows;
+}
+
+ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed, const ImageI16* disp_right,
+                 int max_disparity) {
   const auto n = static_cast<std::ptrdiff_t>(disp.data.size());
   ImageI16 d(disp.width, disp.height);
   ImageU8 removed(disp.width, disp.height);
@@ -428,6 +479,9 @@ ImageI16 densify(const ImageI16& disp, const DensifyParams& p, ImageU8* changed,
   }
   ImageU8 filled;
   ImageI16 out = p.fill ? median_fill(d, &filled, p.interpolate_max_diff * kDispScale) : d;
+  if (p.fill && p.border_fit_px > 0)
+    extrapolate_left_border(out, d, p.border_fit_px, max_disparity > 0 ? (max_disparity - 1) * kDispScale : 0,
+                            p.border_fit_min_slope * kDispScale);
   if (p.smooth) out = smooth_disparity(out, p.smoothing);
   if (changed) {
     *changed = ImageU8(disp.width, disp.height);

@@ -172,10 +172,39 @@ def smooth_disparity(disp: np.ndarray, radius: int, step: int, sigma_space: floa
         return np.where(np.isnan(disp), np.nan, num / den)
 
 
+def extrapolate_left_border(out: np.ndarray, before: np.ndarray, window: int, cap: float = 0.0,
+                            min_slope: float = 0.0) -> int:
+    """Left border band (docs/algorithm.md 6f): per row whose first estimate of ``before`` (NaN = none) is at
+    x0 > 0, the least-squares line through its estimates in [x0, x0 + window) (at least max(3, window // 4));
+    when it rises towards the border by at least ``min_slope`` px per column (and by anything when 0),
+    ``out[:x0]`` takes its values, capped at ``cap`` (> 0). In place; returns the rows extrapolated."""
+    rows = 0
+    if window <= 0:
+        return 0
+    for y in range(before.shape[0]):
+        valid = ~np.isnan(before[y])
+        if not valid.any() or valid[0]:
+            continue
+        x0 = int(np.argmax(valid))
+        xs = np.nonzero(valid[x0:x0 + window])[0] + x0
+        if len(xs) < max(3, window // 4):
+            continue
+        ds = before[y, xs].astype(np.float64)
+        xm, dm = xs.mean(), ds.mean()
+        sxx, sxd = float(((xs - xm) ** 2).sum()), float(((xs - xm) * (ds - dm)).sum())
+        if sxx <= 0 or sxd >= 0 or (min_slope > 0 and -sxd < min_slope * sxx):
+            continue
+        v = dm + sxd / sxx * (np.arange(x0) - xm)
+        out[y, :x0] = np.minimum(v, cap) if cap > 0 else v
+        rows += 1
+    return rows
+
+
 def densify(
     disp: np.ndarray, enabled: bool, speckle_max_size: int, speckle_max_diff: float, fill: bool, interpolate_max_diff: float = 0.0,
     disp_right: np.ndarray | None = None, occlusion_dilate: int = 1, occlusion_max_gap: int = 64,
     smooth: tuple[int, int, float, float, float] | None = None,
+    border_fit: tuple[int, float, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(final map, changed: 0 kept, 1 filled, 2 zero or removed as a speckle). The occlusion fill runs
     when ``disp_right`` (the right-reference WTA map) is given, the smoothing when ``smooth`` is.
@@ -189,15 +218,19 @@ def densify(
     if disp_right is not None:
         d, occ = occlusion_fill(d, disp_right, occlusion_dilate, occlusion_max_gap)
     out, filled = median_fill(d, interpolate_max_diff) if fill else (d, np.zeros(d.shape, dtype=bool))
+    if fill and border_fit is not None and border_fit[0] > 0:  # (window px, min slope px/column, max_disparity)
+        extrapolate_left_border(out, d, border_fit[0], border_fit[2] - 1 if border_fit[2] > 0 else 0.0, border_fit[1])
     if smooth is not None:  # (radius, step, sigma_space, sigma_range, sigma_range_rel)
         out = smooth_disparity(out, *smooth)
     changed = np.where(occ, 1, np.where(zero | removed, 2, np.where(filled, 1, 0))).astype(np.uint8)
     return out, changed
 
 
-def densify_config(disp: np.ndarray, disp_right: np.ndarray | None, dn) -> tuple[np.ndarray, np.ndarray]:
-    """densify with the fields of a ``[densify]`` config section (the occlusion fill when it is on)."""
+def densify_config(disp: np.ndarray, disp_right: np.ndarray | None, dn, max_disparity: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """densify with the fields of a ``[densify]`` config section (the occlusion fill when it is on);
+    ``max_disparity`` (the ``[cost]`` search range) caps the left border extrapolation."""
     return densify(disp, dn.enabled, dn.speckle_max_size, dn.speckle_max_diff, dn.fill, dn.interpolate_max_diff,
                    disp_right if dn.occlusion_fill else None, dn.occlusion_dilate, dn.occlusion_max_gap,
                    (dn.smooth_radius, dn.smooth_step, dn.smooth_sigma_space, dn.smooth_sigma_range, dn.smooth_sigma_range_rel)
-                   if dn.smooth else None)
+                   if dn.smooth else None,
+                   (dn.border_fit_px, dn.border_fit_min_slope, max_disparity) if dn.border_fit_px > 0 else None)

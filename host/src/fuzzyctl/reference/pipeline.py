@@ -122,7 +122,7 @@ def match(
         disp_esr, replaced, maps = disp_lr.copy(), np.zeros(left.shape, dtype=bool), {}
     clock.lap("esr")
 
-    final, changed = densify.densify_config(disp_esr, disp_r, dn)  # not in the paper
+    final, changed = densify.densify_config(disp_esr, disp_r, dn, c.max_disparity)  # not in the paper
     clock.lap("densify")
 
     return ReferenceResult(
