@@ -73,6 +73,62 @@ ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity
   return out;
 }
 
+DetectResult oracle_detections_of(const sim::RenderResult& rr, const ImageI16& disp, const StereoCalib& calib,
+                                  const DetectParams& p, int min_pixels) {
+  const int w = disp.width, h = disp.height;
+  DetectResult r;
+  r.disp = disp;
+  r.sky_skipped = true;
+  r.road_mask = ImageU8(w, h, 0);
+  r.obstacle_labels = ImageI32(w, h, 0);
+  for (std::size_t i = 0; i < r.road_mask.data.size(); ++i) r.road_mask.data[i] = rr.road_mask.data[i] ? 1 : 0;
+  int max_id = -1;
+  for (const auto& o : rr.obstacles) max_id = std::max(max_id, o.id);
+  struct Acc {
+    int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+    std::vector<std::int16_t> d;
+  };
+  std::vector<Acc> acc(static_cast<std::size_t>(max_id + 1));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int id = rr.obstacle_ids.at(x, y);
+      const std::int16_t d = disp.at(x, y);
+      if (id < 0 || id > max_id || d == kInvalidDisp) continue;
+      Acc& a = acc[static_cast<std::size_t>(id)];
+      a.x0 = std::min(a.x0, x), a.x1 = std::max(a.x1, x), a.y0 = std::min(a.y0, y), a.y1 = std::max(a.y1, y);
+      a.d.push_back(d);
+    }
+  std::vector<std::pair<int, Obstacle>> found;  // (scene id, obstacle)
+  for (int id = 0; id <= max_id; ++id) {
+    Acc& a = acc[static_cast<std::size_t>(id)];
+    if (static_cast<int>(a.d.size()) < min_pixels) continue;
+    Obstacle o;
+    o.x0 = a.x0, o.y0 = a.y0, o.x1 = a.x1, o.y1 = a.y1;
+    o.pixel_count = static_cast<int>(a.d.size());
+    std::nth_element(a.d.begin(), a.d.begin() + static_cast<std::ptrdiff_t>(a.d.size() / 2), a.d.end());
+    o.disparity_q4 = std::max<int>(1, a.d[a.d.size() / 2]);
+    o.distance_m = calib.depth_of(double(o.disparity_q4) / kDispScale);
+    o.lateral_m = (0.5 * (o.x0 + o.x1) - calib.cx) * o.distance_m / calib.focal_px;
+    o.cls = detect::classify_distance(o.distance_m, p);
+    found.emplace_back(id, o);
+  }
+  std::stable_sort(found.begin(), found.end(),
+                   [](const auto& a, const auto& b) { return a.second.disparity_q4 > b.second.disparity_q4; });
+  std::vector<int> label_of(static_cast<std::size_t>(max_id + 1), 0);
+  for (std::size_t i = 0; i < found.size(); ++i) {
+    found[i].second.id = static_cast<int>(i);
+    label_of[static_cast<std::size_t>(found[i].first)] = static_cast<int>(i) + 1;
+    r.obstacles.push_back(found[i].second);
+  }
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int id = rr.obstacle_ids.at(x, y);
+      if (id >= 0 && id <= max_id && disp.at(x, y) != kInvalidDisp)
+        r.obstacle_labels.at(x, y) = label_of[static_cast<std::size_t>(id)];
+    }
+  return r;
+}
+
 namespace {
 
 // BT.601 luma in integers, the same weights OpenCV's cvtColor uses (R 0.299, G 0.587, B 0.114).
@@ -431,8 +487,9 @@ LoopResult RobotLoop::run() {
       if (time_limit_s <= 0) time_limit_s = m->time_limit_s;
     }
   } else {
-    if (opt.oracle_disparity)
-      throw UserError("--oracle-disparity needs the simulator (--source sim:SCENE): other sources have no ground truth");
+    if (opt.oracle_disparity || opt.oracle_detections)
+      throw UserError(std::string(opt.oracle_detections ? "--oracle-detections" : "--oracle-disparity") +
+                      " needs the simulator (--source sim:SCENE): other sources have no ground truth");
     const capture::CameraParams cp = capture::camera_params_from(I.cfg.values);
     I.camera = open_stereo_source(opt.source, cp);
     if (!cp.calibration.empty()) {
@@ -824,9 +881,11 @@ LoopResult RobotLoop::run() {
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
     ImageI16 oracle_disp;
-    if (opt.oracle_disparity) oracle_disp = oracle_disparity_q4(rr.disparity, I.cfg.matcher.cost.max_disparity);
-    const ImageI16& det_disp = opt.oracle_disparity ? oracle_disp : detection_disparity(mr, det_input);  // [detect] input
-    const DetectResult det = detector.detect(det_disp, rgb_left, I.calib);
+    const bool oracle = opt.oracle_disparity || opt.oracle_detections;
+    if (oracle) oracle_disp = oracle_disparity_q4(rr.disparity, I.cfg.matcher.cost.max_disparity);
+    const ImageI16& det_disp = oracle ? oracle_disp : detection_disparity(mr, det_input);  // [detect] input
+    const DetectResult det = opt.oracle_detections ? oracle_detections_of(rr, oracle_disp, I.calib, detector.params())
+                                                   : detector.detect(det_disp, rgb_left, I.calib);
     // Ground seen ahead ([robot] ground_ahead_min_pct, docs/robot.md "Session 32"): the share
     // of the corridor's ground band that the detector explained as road or as an obstacle (the map
     // and the tracks hold those); the rest is ground the camera does not see — an obstacle nearer

@@ -18,7 +18,9 @@
 #include "config.hpp"
 #include "fuzzystereo/matcher.hpp"
 #include "fuzzystereo/robot/geometry.hpp"
+#include "fuzzystereo/detect.hpp"
 #include "fuzzystereo/sim/scene.hpp"
+#include "fuzzystereo/sim/world.hpp"
 
 namespace fs::app {
 
@@ -56,6 +58,10 @@ struct LoopOptions {
   // of the matcher's map. The matcher still runs (its timings and the perception health stay real).
   // Separates what the matcher's errors cost the robot from what the rest of the loop costs.
   bool oracle_disparity = false;
+  // The next rung (session 45): the detector's output is the simulator's truth as well — one obstacle per
+  // scene obstacle with visible pixels in range (its pixels, box and median true disparity), the true road
+  // mask — so tracking, mapping and planning run on exact detections. Implies oracle_disparity.
+  bool oracle_detections = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
@@ -67,6 +73,11 @@ struct LoopOptions {
 // The simulator's exact left disparity [px] as a matcher map: Q4, kInvalidDisp where d <= 0 (sky) or
 // d >= max_disparity (outside the search range). LoopOptions::oracle_disparity.
 ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity);
+// The simulator's truth as a detector output (LoopOptions::oracle_detections): obstacle_labels = id + 1 of
+// every scene obstacle pixel with a valid oracle disparity (`disp`), one Obstacle per scene obstacle with at
+// least `min_pixels` of them (box, median disparity, distance, class by `p`), the true road mask.
+DetectResult oracle_detections_of(const sim::RenderResult& rr, const ImageI16& disp, const StereoCalib& calib,
+                                  const DetectParams& p, int min_pixels = 50);
 
 struct StageStat {
   double median = 0, p90 = 0, max = 0;

@@ -376,3 +376,14 @@ def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tm
 
     p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-disparity", "--max-frames", "1")
     assert p.returncode != 0 and "--oracle-disparity needs the simulator" in p.stderr, p.stderr
+
+    # the next rung, --oracle-detections: the scene's obstacles themselves, their boxes and median depths
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle-detections", "--max-frames", "1",
+            "--record", str(tmp_path / "rec_d"), "--snapshot-every", "0")
+    assert p.returncode == 0, p.stderr
+    truth = json.loads((tmp_path / "rec_d" / "frames.jsonl").read_text().splitlines()[0])["detections"]
+    gt = json.loads((rend / "obstacles.json").read_text())["obstacles"]
+    assert [d["box"] for d in truth] == [o["box"] for o in gt]
+    assert all(abs(d["distance_m"] - o["distance_m"]) < 0.01 * o["distance_m"] for d, o in zip(truth, gt))
+    p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-detections", "--max-frames", "1")
+    assert p.returncode != 0 and "--oracle-detections needs the simulator" in p.stderr, p.stderr

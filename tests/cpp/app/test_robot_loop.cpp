@@ -26,3 +26,52 @@ TEST(OracleDisparity, ExactValuesInTheMatchersRangeAndInvalidOutsideIt) {
 }
 
 }  // namespace
+
+namespace {
+
+// The next rung, --oracle-detections: the simulator's truth as the detector's output.
+TEST(OracleDetections, OneObstaclePerVisibleSceneObstacleNearestFirstWithTheTrueRoad) {
+  fs::sim::RenderResult rr;
+  const int w = 40, h = 20;
+  rr.disparity = fs::Image<float>(w, h, 0.0f);
+  rr.obstacle_ids = fs::ImageI32(w, h, -1);
+  rr.road_mask = fs::ImageU8(w, h, 0);
+  for (int y = 15; y < h; ++y)
+    for (int x = 0; x < w; ++x) rr.road_mask.at(x, y) = 255, rr.disparity.at(x, y) = 3.0f;
+  // obstacle 0: far (4 px) at x 2..11, y 2..11; obstacle 1: near (10 px, one pixel 10.5) at x 20..29, y 5..14;
+  // obstacle 2: 4 pixels only; obstacle 3: nearer than the search range (no valid pixel)
+  for (int y = 2; y < 12; ++y)
+    for (int x = 2; x < 12; ++x) rr.obstacle_ids.at(x, y) = 0, rr.disparity.at(x, y) = 4.0f;
+  for (int y = 5; y < 15; ++y)
+    for (int x = 20; x < 30; ++x) rr.obstacle_ids.at(x, y) = 1, rr.disparity.at(x, y) = 10.0f;
+  rr.disparity.at(20, 5) = 10.5f;
+  for (int x = 33; x < 37; ++x) rr.obstacle_ids.at(x, 3) = 2, rr.disparity.at(x, 3) = 6.0f;
+  for (int x = 33; x < 39; ++x)
+    for (int y = 6; y < 14; ++y) rr.obstacle_ids.at(x, y) = 3, rr.disparity.at(x, y) = 70.0f;
+  rr.obstacles.resize(4);
+  for (int i = 0; i < 4; ++i) rr.obstacles[std::size_t(i)].id = i;
+  const fs::ImageI16 disp = fs::app::oracle_disparity_q4(rr.disparity, 64);
+  fs::StereoCalib calib;
+  calib.focal_px = 100.0, calib.baseline_m = 0.1, calib.cx = 20.0, calib.cy = 10.0;
+  const fs::DetectParams p;
+  const fs::DetectResult r = fs::app::oracle_detections_of(rr, disp, calib, p, 5);
+  ASSERT_EQ(r.obstacles.size(), 2u);
+  const fs::Obstacle& n = r.obstacles[0];  // nearest first
+  EXPECT_EQ(n.id, 0);
+  EXPECT_EQ(std::vector<int>({n.x0, n.y0, n.x1, n.y1}), std::vector<int>({20, 5, 29, 14}));
+  EXPECT_EQ(n.pixel_count, 100);
+  EXPECT_EQ(n.disparity_q4, 10 * fs::kDispScale);  // the median, not the outlier
+  EXPECT_DOUBLE_EQ(n.distance_m, 1.0);
+  EXPECT_EQ(n.cls, fs::detect::classify_distance(1.0, p));
+  const fs::Obstacle& f = r.obstacles[1];
+  EXPECT_EQ(std::vector<int>({f.x0, f.y0, f.x1, f.y1}), std::vector<int>({2, 2, 11, 11}));
+  EXPECT_DOUBLE_EQ(f.distance_m, 2.5);
+  EXPECT_EQ(r.obstacle_labels.at(25, 10), 1);  // id + 1
+  EXPECT_EQ(r.obstacle_labels.at(5, 5), 2);
+  EXPECT_EQ(r.obstacle_labels.at(34, 3), 0);   // too few pixels: no obstacle
+  EXPECT_EQ(r.obstacle_labels.at(35, 8), 0);   // outside the search range
+  EXPECT_EQ(r.road_mask.at(3, 16), 1);
+  EXPECT_EQ(r.road_mask.at(3, 3), 0);
+}
+
+}  // namespace
