@@ -73,6 +73,31 @@ ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity
   return out;
 }
 
+std::vector<robot::CircleObstacle> oracle_world_circles(const std::vector<sim::Footprint>& now,
+                                                        const std::vector<sim::Footprint>& later, double dt_s) {
+  std::vector<robot::CircleObstacle> out;
+  for (const sim::Footprint& f : now) {
+    Vec2 vel{};
+    for (const sim::Footprint& g : later)
+      if (g.id == f.id && dt_s > 0) vel = Vec2{(g.x_m - f.x_m) / dt_s, (g.y_m - f.y_m) / dt_s};
+    if (f.circle) {
+      out.push_back({{f.x_m, f.y_m}, f.radius_m, vel});
+      continue;
+    }
+    // the long axis: along the box's yaw when half_length >= half_width, else across it
+    const bool along = f.half_length_m >= f.half_width_m;
+    const double L = along ? f.half_length_m : f.half_width_m, W = along ? f.half_width_m : f.half_length_m;
+    const double ax = along ? std::cos(f.yaw_rad) : -std::sin(f.yaw_rad), ay = along ? std::sin(f.yaw_rad) : std::cos(f.yaw_rad);
+    const int n = std::max(1, static_cast<int>(std::ceil(L / std::max(W, 1e-3))));  // slices of length 2L/n <= 2W
+    const double half_slice = L / n, r = std::hypot(W, half_slice);
+    for (int i = 0; i < n; ++i) {
+      const double s = -L + (2 * i + 1) * half_slice;
+      out.push_back({{f.x_m + s * ax, f.y_m + s * ay}, r, vel});
+    }
+  }
+  return out;
+}
+
 DetectResult oracle_detections_of(const sim::RenderResult& rr, const ImageI16& disp, const StereoCalib& calib,
                                   const DetectParams& p, int min_pixels) {
   const int w = disp.width, h = disp.height;
@@ -487,8 +512,8 @@ LoopResult RobotLoop::run() {
       if (time_limit_s <= 0) time_limit_s = m->time_limit_s;
     }
   } else {
-    if (opt.oracle_disparity || opt.oracle_detections)
-      throw UserError(std::string(opt.oracle_detections ? "--oracle-detections" : "--oracle-disparity") +
+    if (opt.oracle_disparity || opt.oracle_detections || opt.oracle_world)
+      throw UserError(std::string(opt.oracle_world ? "--oracle-world" : opt.oracle_detections ? "--oracle-detections" : "--oracle-disparity") +
                       " needs the simulator (--source sim:SCENE): other sources have no ground truth");
     const capture::CameraParams cp = capture::camera_params_from(I.cfg.values);
     I.camera = open_stereo_source(opt.source, cp);
@@ -1155,6 +1180,15 @@ LoopResult RobotLoop::run() {
           }
         }
       }
+    }
+    if (opt.oracle_world) {  // LoopOptions::oracle_world: the truth instead of everything above
+      const double t_now = robot::ns_to_s(t_frame - t0);
+      std::vector<CircleObstacle> truth =
+          oracle_world_circles(I.world->obstacles_at(t_now), I.world->obstacles_at(t_now + 0.1), 0.1);
+      std::erase_if(truth, [&](const CircleObstacle& c) { return robot::norm(c.c - pose.pos()) - c.r > lp.plan_radius_m; });
+      obstacles = std::move(truth);
+      kinds.assign(obstacles.size(), 't');
+      unseen_obstacles.clear();
     }
     for (const CircleObstacle& u : unseen_obstacles) {  // the ground-seen-ahead stop's obstacles (above)
       obstacles.push_back(u);

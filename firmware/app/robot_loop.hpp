@@ -62,6 +62,10 @@ struct LoopOptions {
   // scene obstacle with visible pixels in range (its pixels, box and median true disparity), the true road
   // mask — so tracking, mapping and planning run on exact detections. Implies oracle_disparity.
   bool oracle_detections = false;
+  // The last rung (session 45): the planner gets every scene obstacle within [loop] plan_radius_m as it is
+  // (footprints covered by circles, true velocities), in view or not, instead of the map and the tracks:
+  // what the planner alone achieves with perfect knowledge. Perception still runs (timings, records).
+  bool oracle_world = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
@@ -76,6 +80,11 @@ ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity
 // The simulator's truth as a detector output (LoopOptions::oracle_detections): obstacle_labels = id + 1 of
 // every scene obstacle pixel with a valid oracle disparity (`disp`), one Obstacle per scene obstacle with at
 // least `min_pixels` of them (box, median disparity, distance, class by `p`), the true road mask.
+// Footprints as planner circles (LoopOptions::oracle_world): a circle of the footprint's radius; a box as
+// circles along its long axis, spaced at most its half width, each covering its slice of the box. vel
+// = the true velocity (finite difference of the footprints at t and t + dt when they move).
+std::vector<robot::CircleObstacle> oracle_world_circles(const std::vector<sim::Footprint>& now,
+                                                        const std::vector<sim::Footprint>& later, double dt_s);
 DetectResult oracle_detections_of(const sim::RenderResult& rr, const ImageI16& disp, const StereoCalib& calib,
                                   const DetectParams& p, int min_pixels = 50);
 

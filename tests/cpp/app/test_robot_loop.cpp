@@ -75,3 +75,46 @@ TEST(OracleDetections, OneObstaclePerVisibleSceneObstacleNearestFirstWithTheTrue
 }
 
 }  // namespace
+
+namespace {
+
+// The last rung, --oracle-world: footprints as planner circles that cover them, with true velocities.
+TEST(OracleWorld, CirclesCoverEachFootprintAndCarryItsVelocity) {
+  fs::sim::Footprint wall;  // 2 m x 0.2 m, turned 30 deg
+  wall.id = 3, wall.x_m = 1.0, wall.y_m = -2.0, wall.yaw_rad = 0.5235987755982988, wall.half_length_m = 1.0,
+  wall.half_width_m = 0.1;
+  fs::sim::Footprint across = wall;  // half_width > half_length: the long axis is across the yaw
+  across.id = 4, across.half_length_m = 0.05, across.half_width_m = 0.4, across.yaw_rad = 0.0;
+  fs::sim::Footprint post;
+  post.id = 7, post.circle = true, post.x_m = 3.0, post.y_m = 0.5, post.radius_m = 0.25;
+  fs::sim::Footprint post_later = post;
+  post_later.x_m += 0.08, post_later.y_m -= 0.04;  // 0.8, -0.4 m/s over 0.1 s
+  const auto c = fs::app::oracle_world_circles({wall, across, post}, {wall, across, post_later}, 0.1);
+  std::vector<fs::robot::CircleObstacle> p;
+  for (const auto& o : c)
+    if (o.r == post.radius_m) p.push_back(o);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_NEAR(p[0].vel.x, 0.8, 1e-9);
+  EXPECT_NEAR(p[0].vel.y, -0.4, 1e-9);
+  // every point of each box lies in one of the circles, and the circles stay within 0.15 m of the box
+  for (const auto* f : {&wall, &across}) {
+    const double ca = std::cos(f->yaw_rad), sa = std::sin(f->yaw_rad);
+    for (double u = -f->half_length_m; u <= f->half_length_m + 1e-9; u += f->half_length_m / 20)
+      for (double v = -f->half_width_m; v <= f->half_width_m + 1e-9; v += f->half_width_m / 10) {
+        const double x = f->x_m + u * ca - v * sa, y = f->y_m + u * sa + v * ca;
+        bool in = false;
+        for (const auto& o : c) in = in || std::hypot(x - o.c.x, y - o.c.y) <= o.r + 1e-9;
+        EXPECT_TRUE(in) << f->id << " " << u << " " << v;
+      }
+  }
+  std::size_t boxes = 0;
+  for (const auto& o : c)
+    if (o.r != post.radius_m) {
+      ++boxes;
+      EXPECT_LE(o.r, std::hypot(0.1, 0.1) + 1e-9);  // wall slices: half width 0.1, slices <= 0.2 long
+      EXPECT_EQ(o.vel.x, 0.0);
+    }
+  EXPECT_EQ(boxes, 10u + 8u);  // 2 m / 0.2 m and 0.8 m / 0.1 m
+}
+
+}  // namespace
