@@ -70,7 +70,8 @@ struct RunOptions {
   std::string source, motors = "sim", config, goal, record, json_out, blind_side = "left", blind_mode = "dark";
   int max_frames = 0, snapshot_every = 10, plan_every = 10, stall_frame = -1, blind_frame = -1, record_fail_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
-  bool realtime = false, quiet = false, oracle_disparity = false, oracle_detections = false, oracle_world = false;
+  bool realtime = false, quiet = false, oracle_disparity = false, oracle_detections = false, oracle_world = false,
+       oracle_world_seen = false;
   // Serial link (docs/protocol.md): device services next to the loop.
   std::string link, state_dir, pty_link;
   int baud = 115200;
@@ -211,7 +212,8 @@ void run_run(const RunOptions& o) {
   lo.quiet = o.quiet;
   lo.oracle_disparity = o.oracle_disparity;
   lo.oracle_detections = o.oracle_detections;
-  lo.oracle_world = o.oracle_world;
+  lo.oracle_world = o.oracle_world || o.oracle_world_seen;
+  lo.oracle_world_seen = o.oracle_world_seen;
   LoopResult r;
   try {
     RobotLoop loop(cfg, lo);
@@ -259,7 +261,7 @@ struct SuiteOptions {
   std::uint64_t seed = 1;
   std::string config, json_out, record, only;
   double latency_ms = 100;
-  bool oracle_disparity = false, oracle_detections = false, oracle_world = false;
+  bool oracle_disparity = false, oracle_detections = false, oracle_world = false, oracle_world_seen = false;
 };
 
 void run_suite(const SuiteOptions& o) {
@@ -318,7 +320,8 @@ void run_suite(const SuiteOptions& o) {
         lo.look_around = true;
         lo.oracle_disparity = o.oracle_disparity;
         lo.oracle_detections = o.oracle_detections;
-        lo.oracle_world = o.oracle_world;
+        lo.oracle_world = o.oracle_world || o.oracle_world_seen;
+        lo.oracle_world_seen = o.oracle_world_seen;
         lo.sim_latency_ms = o.latency_ms;
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;
@@ -424,7 +427,8 @@ void run_suite(const SuiteOptions& o) {
   if (errors) std::printf("errors                %d (first: %s)\n", errors, first_error.c_str());
   if (!o.json_out.empty()) {
     json j{{"seed", o.seed},
-           {"perception", o.oracle_world        ? "oracle_world"
+           {"perception", o.oracle_world_seen   ? "oracle_world_seen"
+                          : o.oracle_world        ? "oracle_world"
                           : o.oracle_detections ? "oracle_detections"
                           : o.oracle_disparity  ? "oracle_disparity"
                                                 : "matcher"},
@@ -489,6 +493,8 @@ void add_run_command(CLI::App& app) {
               "Simulator diagnostic: the detector's output is the simulator's truth too (obstacles, road)");
   c->add_flag("--oracle-world", o->oracle_world,
               "Simulator diagnostic: the planner gets every scene obstacle in its radius as it is (in view or not)");
+  c->add_flag("--oracle-world-seen", o->oracle_world_seen,
+              "Simulator diagnostic: as --oracle-world, only the obstacles the camera has seen so far");
   c->add_option("--json", o->json_out, "Write the result as JSON");
   c->add_option("--link", o->link, "Serial link: 'pty' (create and announce a pseudo-terminal) or a device, e.g. /dev/ttyAMA0");
   c->add_option("--baud", o->baud, "Serial baud rate")->capture_default_str();
@@ -525,6 +531,9 @@ void add_sim_suite_command(CLI::App& sim) {
   c->add_flag("--oracle-world", o->oracle_world,
               "Diagnostic: the planner gets every scene obstacle in its radius as it is (in view or not, true "
               "velocities) instead of the map and the tracks");
+  c->add_flag("--oracle-world-seen", o->oracle_world_seen,
+              "Diagnostic: as --oracle-world, but only the obstacles the camera has seen so far (perfect tracking "
+              "and memory, the real field of view)");
   c->callback([o] { run_suite(*o); });
 }
 

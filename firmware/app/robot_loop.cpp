@@ -3,6 +3,7 @@
 #include "run_recorder.hpp"
 
 #include <algorithm>
+#include <set>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -716,6 +717,7 @@ LoopResult RobotLoop::run() {
   double scan_turned_rad = 0;
   bool ground_unseen = false;  // the ground-seen-ahead stop is engaged ([robot] ground_ahead_min_pct)
   std::vector<CircleObstacle> unseen_obstacles;  // ... the obstacles it left (world frame; see below)
+  std::set<int> oracle_seen_ids;                 // LoopOptions::oracle_world_seen: scene obstacles seen so far
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
   // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
@@ -1183,8 +1185,12 @@ LoopResult RobotLoop::run() {
     }
     if (opt.oracle_world) {  // LoopOptions::oracle_world: the truth instead of everything above
       const double t_now = robot::ns_to_s(t_frame - t0);
-      std::vector<CircleObstacle> truth =
-          oracle_world_circles(I.world->obstacles_at(t_now), I.world->obstacles_at(t_now + 0.1), 0.1);
+      for (const auto& o : rr.obstacles)
+        if (o.visible_pixels >= 50 && o.distance_m > 0 && o.distance_m <= lp.map_range_m) oracle_seen_ids.insert(o.id);
+      std::vector<sim::Footprint> now = I.world->obstacles_at(t_now);
+      if (opt.oracle_world_seen)
+        std::erase_if(now, [&](const sim::Footprint& f) { return oracle_seen_ids.count(f.id) == 0; });
+      std::vector<CircleObstacle> truth = oracle_world_circles(now, I.world->obstacles_at(t_now + 0.1), 0.1);
       std::erase_if(truth, [&](const CircleObstacle& c) { return robot::norm(c.c - pose.pos()) - c.r > lp.plan_radius_m; });
       obstacles = std::move(truth);
       kinds.assign(obstacles.size(), 't');

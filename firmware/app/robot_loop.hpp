@@ -66,6 +66,9 @@ struct LoopOptions {
   // (footprints covered by circles, true velocities), in view or not, instead of the map and the tracks:
   // what the planner alone achieves with perfect knowledge. Perception still runs (timings, records).
   bool oracle_world = false;
+  // ... only the obstacles the camera has seen so far (at least 50 pixels within [loop] map_range_m in some
+  // frame), each then known exactly from that frame on: perfect tracking and memory, the real field of view.
+  bool oracle_world_seen = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).

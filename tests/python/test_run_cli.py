@@ -387,3 +387,11 @@ def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tm
     assert all(abs(d["distance_m"] - o["distance_m"]) < 0.01 * o["distance_m"] for d, o in zip(truth, gt))
     p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-detections", "--max-frames", "1")
     assert p.returncode != 0 and "--oracle-detections needs the simulator" in p.stderr, p.stderr
+
+    # the last rungs: the planner gets the scene's obstacles themselves (all of them, or those seen so far)
+    for flag in ("--oracle-world", "--oracle-world-seen"):
+        out = tmp_path / f"w{flag}.json"
+        p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", flag, "--json", str(out))
+        assert p.returncode == 0, p.stderr
+        r = json.loads(out.read_text())
+        assert r["status"] == "reached" and not r["collided"], (flag, r)
