@@ -66,12 +66,33 @@ void print_result(const LoopResult& r) {
   for (const auto& [k, s] : r.stages) std::printf("%-8s %9.1f %9.1f %9.1f\n", k.c_str(), s.median, s.p90, s.max);
 }
 
+// Simulator diagnostics (docs/robot.md "Session 45"): what the robot achieves when one layer of its
+// perception is replaced by the simulator's truth. disparity: the matcher's map; detections: the matcher's
+// map and the detector's output; world-seen: the planner's obstacles (map cells, tracks and what the loop
+// adds to them) are every scene obstacle the camera has seen so far, known exactly from then on; world:
+// every scene obstacle, in view or not. With the world levels perception runs as usual (its output is
+// recorded, the ground-seen-ahead stop still reads it); only the planner's obstacle list is the truth.
+void set_oracle(LoopOptions& lo, const std::string& level) {
+  lo.oracle_disparity = level == "disparity" || level == "detections";
+  lo.oracle_detections = level == "detections";
+  lo.oracle_world = level == "world" || level == "world-seen";
+  lo.oracle_world_seen = level == "world-seen";
+}
+
+void add_oracle_option(CLI::App* c, std::string& level) {
+  c->add_option("--oracle", level,
+                "Simulator diagnostic: replace a layer by the truth - disparity (the matcher's map), detections (the "
+                "detector's output), world-seen (the planner gets every obstacle seen so far, exactly), world (every "
+                "obstacle, in view or not)")
+      ->check(CLI::IsMember({"disparity", "detections", "world-seen", "world"}));
+}
+
 struct RunOptions {
   std::string source, motors = "sim", config, goal, record, json_out, blind_side = "left", blind_mode = "dark";
   int max_frames = 0, snapshot_every = 10, plan_every = 10, stall_frame = -1, blind_frame = -1, record_fail_frame = -1;
   double stall_ms = 0, latency_ms = 100, time_limit = 0;
-  bool realtime = false, quiet = false, oracle_disparity = false, oracle_detections = false, oracle_world = false,
-       oracle_world_seen = false;
+  bool realtime = false, quiet = false;
+  std::string oracle;  // simulator diagnostic (add_oracle_option)
   // Serial link (docs/protocol.md): device services next to the loop.
   std::string link, state_dir, pty_link;
   int baud = 115200;
@@ -210,10 +231,7 @@ void run_run(const RunOptions& o) {
   lo.time_limit_s = o.time_limit;
   lo.realtime = lo.realtime || o.realtime;
   lo.quiet = o.quiet;
-  lo.oracle_disparity = o.oracle_disparity;
-  lo.oracle_detections = o.oracle_detections;
-  lo.oracle_world = o.oracle_world || o.oracle_world_seen;
-  lo.oracle_world_seen = o.oracle_world_seen;
+  set_oracle(lo, o.oracle);
   LoopResult r;
   try {
     RobotLoop loop(cfg, lo);
@@ -261,7 +279,7 @@ struct SuiteOptions {
   std::uint64_t seed = 1;
   std::string config, json_out, record, only;
   double latency_ms = 100;
-  bool oracle_disparity = false, oracle_detections = false, oracle_world = false, oracle_world_seen = false;
+  std::string oracle;  // simulator diagnostic (add_oracle_option)
 };
 
 void run_suite(const SuiteOptions& o) {
@@ -318,10 +336,7 @@ void run_suite(const SuiteOptions& o) {
         lo.source = "sim:" + lo.scene->source;
         lo.quiet = true;
         lo.look_around = true;
-        lo.oracle_disparity = o.oracle_disparity;
-        lo.oracle_detections = o.oracle_detections;
-        lo.oracle_world = o.oracle_world || o.oracle_world_seen;
-        lo.oracle_world_seen = o.oracle_world_seen;
+        set_oracle(lo, o.oracle);
         lo.sim_latency_ms = o.latency_ms;
         if (!o.record.empty()) {
           lo.record_dir = o.record + "/" + lo.scene->source;
@@ -427,11 +442,7 @@ void run_suite(const SuiteOptions& o) {
   if (errors) std::printf("errors                %d (first: %s)\n", errors, first_error.c_str());
   if (!o.json_out.empty()) {
     json j{{"seed", o.seed},
-           {"perception", o.oracle_world_seen   ? "oracle_world_seen"
-                          : o.oracle_world        ? "oracle_world"
-                          : o.oracle_detections ? "oracle_detections"
-                          : o.oracle_disparity  ? "oracle_disparity"
-                                                : "matcher"},
+           {"perception", o.oracle.empty() ? std::string("matcher") : "oracle " + o.oracle},
            {"solvable", solvable},
            {"reached", reached},
            {"success_pct", success},
@@ -486,15 +497,7 @@ void add_run_command(CLI::App& app) {
   c->add_option("--record-fail-frame", o->record_fail_frame, "Fault injection: from this frame on record writes fail (disk full test)");
   c->add_flag("--realtime", o->realtime, "Simulator: pace frames on the wall clock");
   c->add_flag("--quiet", o->quiet, "No per-frame line on stderr");
-  c->add_flag("--oracle-disparity", o->oracle_disparity,
-              "Simulator diagnostic: the loop reads the rendered ground-truth disparity (in the matcher's range) "
-              "instead of the matcher's map");
-  c->add_flag("--oracle-detections", o->oracle_detections,
-              "Simulator diagnostic: the detector's output is the simulator's truth too (obstacles, road)");
-  c->add_flag("--oracle-world", o->oracle_world,
-              "Simulator diagnostic: the planner gets every scene obstacle in its radius as it is (in view or not)");
-  c->add_flag("--oracle-world-seen", o->oracle_world_seen,
-              "Simulator diagnostic: as --oracle-world, only the obstacles the camera has seen so far");
+  add_oracle_option(c, o->oracle);
   c->add_option("--json", o->json_out, "Write the result as JSON");
   c->add_option("--link", o->link, "Serial link: 'pty' (create and announce a pseudo-terminal) or a device, e.g. /dev/ttyAMA0");
   c->add_option("--baud", o->baud, "Serial baud rate")->capture_default_str();
@@ -522,18 +525,7 @@ void add_sim_suite_command(CLI::App& sim) {
       ->capture_default_str();
   c->add_option("--json", o->json_out, "Write the summary and every scenario as JSON");
   c->add_option("--only", o->only, "Run only these scenarios of the seed: e.g. 3,17,b0 (b = without a free path)");
-  c->add_flag("--oracle-disparity", o->oracle_disparity,
-              "Diagnostic: the loop reads the rendered ground-truth disparity (in the matcher's range) instead of the "
-              "matcher's map");
-  c->add_flag("--oracle-detections", o->oracle_detections,
-              "Diagnostic: the detector's output is the simulator's truth too (obstacles, road), so tracking and "
-              "planning run on exact detections");
-  c->add_flag("--oracle-world", o->oracle_world,
-              "Diagnostic: the planner gets every scene obstacle in its radius as it is (in view or not, true "
-              "velocities) instead of the map and the tracks");
-  c->add_flag("--oracle-world-seen", o->oracle_world_seen,
-              "Diagnostic: as --oracle-world, but only the obstacles the camera has seen so far (perfect tracking "
-              "and memory, the real field of view)");
+  add_oracle_option(c, o->oracle);
   c->callback([o] { run_suite(*o); });
 }
 

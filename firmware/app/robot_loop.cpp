@@ -514,8 +514,7 @@ LoopResult RobotLoop::run() {
     }
   } else {
     if (opt.oracle_disparity || opt.oracle_detections || opt.oracle_world)
-      throw UserError(std::string(opt.oracle_world ? "--oracle-world" : opt.oracle_detections ? "--oracle-detections" : "--oracle-disparity") +
-                      " needs the simulator (--source sim:SCENE): other sources have no ground truth");
+      throw UserError("--oracle needs the simulator (--source sim:SCENE): other sources have no ground truth");
     const capture::CameraParams cp = capture::camera_params_from(I.cfg.values);
     I.camera = open_stereo_source(opt.source, cp);
     if (!cp.calibration.empty()) {
@@ -908,7 +907,7 @@ LoopResult RobotLoop::run() {
     // ---- detect ----
     s1 = std::chrono::steady_clock::now();
     ImageI16 oracle_disp;
-    const bool oracle = opt.oracle_disparity || opt.oracle_detections;
+    const bool oracle = opt.oracle_disparity || opt.oracle_detections;  // detections read the oracle map
     if (oracle) oracle_disp = oracle_disparity_q4(rr.disparity, I.cfg.matcher.cost.max_disparity);
     const ImageI16& det_disp = oracle ? oracle_disp : detection_disparity(mr, det_input);  // [detect] input
     const DetectResult det = opt.oracle_detections ? oracle_detections_of(rr, oracle_disp, I.calib, detector.params())

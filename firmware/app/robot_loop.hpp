@@ -60,7 +60,7 @@ struct LoopOptions {
   bool oracle_disparity = false;
   // The next rung (session 45): the detector's output is the simulator's truth as well — one obstacle per
   // scene obstacle with visible pixels in range (its pixels, box and median true disparity), the true road
-  // mask — so tracking, mapping and planning run on exact detections. Implies oracle_disparity.
+  // mask — so tracking, mapping and planning run on exact detections (reads the oracle disparity).
   bool oracle_detections = false;
   // The last rung (session 45): the planner gets every scene obstacle within [loop] plan_radius_m as it is
   // (footprints covered by circles, true velocities), in view or not, instead of the map and the tracks:

@@ -346,13 +346,13 @@ def test_commanded_odometry_follows_the_wheels_on_the_wall_clock(firmware_bin, t
 
 
 def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tmp_path):
-    # `--oracle-disparity` (docs/robot.md "Session 45") feeds the loop's detector the rendered ground truth:
+    # `--oracle disparity` (docs/robot.md "Session 45") feeds the loop's detector the rendered ground truth:
     # its first frame's detections are those of `detect --disparity` on `sim render`'s ground truth of the
     # same scene (the matcher's differ), the robot still reaches its goal, and a source without ground
     # truth refuses the flag by name.
     scene = common_dir / "sim/scenes/mission.toml"
     out = tmp_path / "r.json"
-    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle-disparity", "--json", str(out),
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle", "disparity", "--json", str(out),
             "--record", str(tmp_path / "rec"), "--snapshot-every", "0")
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
@@ -374,24 +374,24 @@ def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tm
     matched = json.loads((tmp_path / "rec_m" / "frames.jsonl").read_text().splitlines()[0])
     assert [d["box"] for d in matched["detections"]] != [d["box"] for d in first["detections"]]
 
-    p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-disparity", "--max-frames", "1")
-    assert p.returncode != 0 and "--oracle-disparity needs the simulator" in p.stderr, p.stderr
+    p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle", "disparity", "--max-frames", "1")
+    assert p.returncode != 0 and "--oracle needs the simulator" in p.stderr, p.stderr
 
-    # the next rung, --oracle-detections: the scene's obstacles themselves, their boxes and median depths
-    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle-detections", "--max-frames", "1",
+    # the next rung, --oracle detections: the scene's obstacles themselves, their boxes and median depths
+    p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle", "detections", "--max-frames", "1",
             "--record", str(tmp_path / "rec_d"), "--snapshot-every", "0")
     assert p.returncode == 0, p.stderr
     truth = json.loads((tmp_path / "rec_d" / "frames.jsonl").read_text().splitlines()[0])["detections"]
     gt = json.loads((rend / "obstacles.json").read_text())["obstacles"]
     assert [d["box"] for d in truth] == [o["box"] for o in gt]
     assert all(abs(d["distance_m"] - o["distance_m"]) < 0.01 * o["distance_m"] for d, o in zip(truth, gt))
-    p = run(firmware_bin, "run", "--source", "uvc:/dev/no-such-camera", "--oracle-detections", "--max-frames", "1")
-    assert p.returncode != 0 and "--oracle-detections needs the simulator" in p.stderr, p.stderr
+    p = run(firmware_bin, "run", "--source", "sim", "--oracle", "everything", "--max-frames", "1")
+    assert p.returncode != 0 and "--oracle" in p.stderr and "world-seen" in p.stderr, p.stderr
 
     # the last rungs: the planner gets the scene's obstacles themselves (all of them, or those seen so far)
-    for flag in ("--oracle-world", "--oracle-world-seen"):
-        out = tmp_path / f"w{flag}.json"
-        p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", flag, "--json", str(out))
+    for level in ("world", "world-seen"):
+        out = tmp_path / f"w{level}.json"
+        p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle", level, "--json", str(out))
         assert p.returncode == 0, p.stderr
         r = json.loads(out.read_text())
-        assert r["status"] == "reached" and not r["collided"], (flag, r)
+        assert r["status"] == "reached" and not r["collided"], (level, r)
