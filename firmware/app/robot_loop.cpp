@@ -1189,11 +1189,34 @@ LoopResult RobotLoop::run() {
       std::vector<sim::Footprint> now = I.world->obstacles_at(t_now);
       if (opt.oracle_world_seen)
         std::erase_if(now, [&](const sim::Footprint& f) { return oracle_seen_ids.count(f.id) == 0; });
+      const auto& spec = I.world->scene().obstacles;
+      const auto is_mover = [&](int id) {
+        const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& s) { return s.id == id; });
+        return it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
+      };
+      if (!opt.oracle_part.empty()) {
+        const bool movers = opt.oracle_part == "movers";
+        std::erase_if(now, [&](const sim::Footprint& f) { return is_mover(f.id) != movers; });
+        // the loop's own obstacles of the other part stay: static ones are map cells (m, f), bodies (b) and
+        // unseen ground (g); the rest (v, n, r, l) come from tracks
+        std::vector<CircleObstacle> kept;
+        std::string kept_kinds;
+        for (std::size_t i = 0; i < obstacles.size(); ++i)
+          if ((std::string("mfbg").find(kinds[i]) != std::string::npos) == movers) {
+            kept.push_back(obstacles[i]);
+            kept_kinds.push_back(kinds[i]);
+          }
+        obstacles = std::move(kept);
+        kinds = std::move(kept_kinds);
+      } else {
+        obstacles.clear();
+        kinds.clear();
+        unseen_obstacles.clear();
+      }
       std::vector<CircleObstacle> truth = oracle_world_circles(now, I.world->obstacles_at(t_now + 0.1), 0.1);
       std::erase_if(truth, [&](const CircleObstacle& c) { return robot::norm(c.c - pose.pos()) - c.r > lp.plan_radius_m; });
-      obstacles = std::move(truth);
-      kinds.assign(obstacles.size(), 't');
-      unseen_obstacles.clear();
+      obstacles.insert(obstacles.end(), truth.begin(), truth.end());
+      kinds.append(truth.size(), 't');
     }
     for (const CircleObstacle& u : unseen_obstacles) {  // the ground-seen-ahead stop's obstacles (above)
       obstacles.push_back(u);
@@ -1207,7 +1230,7 @@ LoopResult RobotLoop::run() {
     // contacts of sessions 26-29 are arcs that turn into a side where such a mover was seen seconds
     // before, while hard circles there (reachable sets, look-before-turn) cost more timeouts than they saved.
     std::vector<CircleObstacle> memory;
-    if (I.pp.w_memory > 0 && lp.memory_s > 0) {
+    if (I.pp.w_memory > 0 && lp.memory_s > 0 && !(opt.oracle_world && opt.oracle_part == "movers")) {
       const auto remember = [&](const robot::Track& tr) {
         if (!tr.confirmed) return;
         const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);

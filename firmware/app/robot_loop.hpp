@@ -69,6 +69,10 @@ struct LoopOptions {
   // ... only the obstacles the camera has seen so far (at least 50 pixels within [loop] map_range_m in some
   // frame), each then known exactly from that frame on: perfect tracking and memory, the real field of view.
   bool oracle_world_seen = false;
+  // ... only part of the planner's list is the truth: "movers" (the scene's moving obstacles seen so far, exact; the
+  // loop's own static obstacles - map cells, fitted bodies, unseen ground - stay, its mover-related ones and the
+  // soft memory go) or "statics" (the other way round); "" = all of it.
+  std::string oracle_part;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).
