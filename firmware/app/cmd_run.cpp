@@ -71,22 +71,28 @@ void print_result(const LoopResult& r) {
 // map and the detector's output; world-seen: the planner's obstacles (map cells, tracks and what the loop
 // adds to them) are every scene obstacle the camera has seen so far, known exactly from then on; world:
 // every scene obstacle, in view or not; movers-seen / statics-seen: only the moving / the static scene obstacles
-// seen so far are the truth, the loop's own obstacles of the other kind stay. With the world levels perception runs as usual (its output is
+// seen so far are the truth, the loop's own obstacles of the other kind stay; movers-seen-added: the movers seen so
+// far, exact, added to the loop's own list (nothing removed). With the world levels perception runs as usual (its output is
 // recorded, the ground-seen-ahead stop still reads it); only the planner's obstacle list is the truth.
 void set_oracle(LoopOptions& lo, const std::string& level) {
   lo.oracle_disparity = level == "disparity" || level == "detections";
   lo.oracle_detections = level == "detections";
   lo.oracle_world = level == "world" || level.ends_with("-seen");
   lo.oracle_world_seen = level.ends_with("-seen");
-  lo.oracle_part = level == "movers-seen" ? "movers" : level == "statics-seen" ? "statics" : "";
+  lo.oracle_part = level == "movers-seen"         ? "movers"
+                   : level == "movers-seen-added" ? "movers+"
+                   : level == "statics-seen"      ? "statics"
+                                                  : "";
 }
 
 void add_oracle_option(CLI::App* c, std::string& level) {
   c->add_option("--oracle", level,
                 "Simulator diagnostic: replace a layer by the truth - disparity (the matcher's map), detections (the "
                 "detector's output), world-seen (the planner gets every obstacle seen so far, exactly), world (every "
-                "obstacle, in view or not), movers-seen / statics-seen (only the moving / static ones seen so far)")
-      ->check(CLI::IsMember({"disparity", "detections", "movers-seen", "statics-seen", "world-seen", "world"}));
+                "obstacle, in view or not), movers-seen / statics-seen (only the moving / static ones seen so far), "
+                "movers-seen-added (the movers seen so far added to the loop's own obstacles)")
+      ->check(CLI::IsMember({"disparity", "detections", "movers-seen", "movers-seen-added", "statics-seen",
+                             "world-seen", "world"}));
 }
 
 struct RunOptions {

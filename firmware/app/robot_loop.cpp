@@ -1194,7 +1194,9 @@ LoopResult RobotLoop::run() {
         const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& s) { return s.id == id; });
         return it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
       };
-      if (!opt.oracle_part.empty()) {
+      if (opt.oracle_part == "movers+") {
+        std::erase_if(now, [&](const sim::Footprint& f) { return !is_mover(f.id); });  // added, nothing removed
+      } else if (!opt.oracle_part.empty()) {
         const bool movers = opt.oracle_part == "movers";
         std::erase_if(now, [&](const sim::Footprint& f) { return is_mover(f.id) != movers; });
         // the loop's own obstacles of the other part stay: static ones are map cells (m, f), bodies (b) and

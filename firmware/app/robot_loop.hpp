@@ -71,7 +71,8 @@ struct LoopOptions {
   bool oracle_world_seen = false;
   // ... only part of the planner's list is the truth: "movers" (the scene's moving obstacles seen so far, exact; the
   // loop's own static obstacles - map cells, fitted bodies, unseen ground - stay, its mover-related ones and the
-  // soft memory go) or "statics" (the other way round); "" = all of it.
+  // soft memory go) or "statics" (the other way round); "movers+" = the movers seen so far added to the loop's
+  // own list, nothing removed; "" = all of it.
   std::string oracle_part;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)

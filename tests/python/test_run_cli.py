@@ -389,7 +389,7 @@ def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tm
     assert p.returncode != 0 and "--oracle" in p.stderr and "world-seen" in p.stderr, p.stderr
 
     # the last rungs: the planner gets the scene's obstacles themselves (all of them, or those seen so far)
-    for level in ("world", "world-seen", "movers-seen", "statics-seen"):
+    for level in ("world", "world-seen", "movers-seen", "movers-seen-added", "statics-seen"):
         out = tmp_path / f"w{level}.json"
         p = run(firmware_bin, "run", "--source", f"sim:{scene}", "--quiet", "--oracle", level, "--json", str(out))
         assert p.returncode == 0, p.stderr
