@@ -3,7 +3,6 @@
 #include "run_recorder.hpp"
 
 #include <algorithm>
-#include <set>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -13,6 +12,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
 #include <random>
 #include <thread>
 
@@ -1199,12 +1199,12 @@ LoopResult RobotLoop::run() {
       } else if (!opt.oracle_part.empty()) {
         const bool movers = opt.oracle_part == "movers";
         std::erase_if(now, [&](const sim::Footprint& f) { return is_mover(f.id) != movers; });
-        // the loop's own obstacles of the other part stay: static ones are map cells (m, f), bodies (b) and
-        // unseen ground (g); the rest (v, n, r, l) come from tracks
+        // the loop's own obstacles of the other part stay: static ones are map cells (m, f) and bodies (b), the
+        // rest (v, n, r, l) come from tracks; the unseen-ground discs (g, added below) stay in both
         std::vector<CircleObstacle> kept;
         std::string kept_kinds;
         for (std::size_t i = 0; i < obstacles.size(); ++i)
-          if ((std::string("mfbg").find(kinds[i]) != std::string::npos) == movers) {
+          if ((std::string("mfb").find(kinds[i]) != std::string::npos) == movers) {
             kept.push_back(obstacles[i]);
             kept_kinds.push_back(kinds[i]);
           }
