@@ -400,9 +400,9 @@ int occlusion_fill(ImageI16& disp, const ImageI16& disp_right, int dilate, int m
 
 // Left border band, docs/algorithm.md 6f. Columns count from x0 (u = x - x0; images up to 8192 wide)
 // and the window holds at most 256 columns, so int64 is exact throughout: S_d < 2^23 (Q4 d < 2^15),
-// den = n^2 var(u) < 2^29, |bnum| = n^2 |cov(u, d)| <= sqrt(den) n 2^15 < 2^37 (Cauchy-Schwarz) and
-// |n u - S_u| < 2^22, so the numerator S_d den + bnum (n u - S_u) < 2^60; the rounding is exact and the
-// same on every platform.
+// den = n^2 var(u) <= 2^16 * 255^2 / 4 < 2^30, |bnum| = n^2 |cov(u, d)| <= sqrt(den) n 2^14 < 2^38
+// (Cauchy-Schwarz, std(d) < 2^14) and |n u - S_u| < 2^22, so the numerator S_d den + bnum (n u - S_u)
+// < 2^61 and 2 num + n den < 2^63; the rounding is exact and the same on every platform.
 int extrapolate_left_border(ImageI16& out, const ImageI16& before, int window_px, int cap_q4, double min_slope_q4) {
   if (window_px <= 0) return 0;
   if (window_px > 256) throw std::invalid_argument("extrapolate_left_border: window above 256 columns");
