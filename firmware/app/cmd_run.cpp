@@ -77,8 +77,9 @@ void print_result(const LoopResult& r) {
 void set_oracle(LoopOptions& lo, const std::string& level) {
   lo.oracle_disparity = level == "disparity" || level == "detections";
   lo.oracle_detections = level == "detections";
-  lo.oracle_world = level == "world" || level.ends_with("-seen");
-  lo.oracle_world_seen = level.ends_with("-seen");
+  const bool seen = level.find("-seen") != std::string::npos;  // world-seen, movers-seen[-added], statics-seen
+  lo.oracle_world = level == "world" || seen;
+  lo.oracle_world_seen = seen;
   lo.oracle_part = level == "movers-seen"         ? "movers"
                    : level == "movers-seen-added" ? "movers+"
                    : level == "statics-seen"      ? "statics"

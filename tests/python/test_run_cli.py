@@ -395,3 +395,19 @@ def test_oracle_disparity_is_a_simulator_diagnostic(firmware_bin, common_dir, tm
         assert p.returncode == 0, p.stderr
         r = json.loads(out.read_text())
         assert r["status"] == "reached" and not r["collided"], (level, r)
+
+
+@pytest.mark.parametrize("level, truth, loop_tracks", [("movers-seen", True, False), ("movers-seen-added", True, True),
+                                                        (None, False, True)])
+def test_oracle_mover_levels_replace_or_add_to_the_loops_track_obstacles(firmware_bin, tmp_path, level, truth, loop_tracks):
+    # Suite scenario 164-10 has a mover the robot sees in its first seconds. The planner's obstacle kinds in the
+    # record (t = the simulator's truth; v, n, r, l = the loop's track-derived obstacles) show what each level did.
+    rec = tmp_path / "rec"
+    args = ["sim", "suite", "--count", "100", "--seed", "164", "--only", "10", "--record", str(rec), "--plan-every", "1"]
+    p = run(firmware_bin, *args, *(["--oracle", level] if level else []), timeout=300)
+    assert p.returncode == 0, p.stderr
+    kinds = "".join(json.loads(line).get("plan_kinds", "") for d in rec.iterdir() if d.is_dir()
+                    for line in (d / "frames.jsonl").read_text().splitlines())
+    assert ("t" in kinds) == truth
+    assert any(k in kinds for k in "vnrl") == loop_tracks
+    assert "m" in kinds  # the loop's own map cells stay at every one of these levels
