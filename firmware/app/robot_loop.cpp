@@ -59,6 +59,13 @@ double wall_ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// A scene obstacle that moves (a nonzero start velocity in its spec): the suite's movers.
+bool scene_obstacle_moves(const sim::Scene& scene, int id) {
+  const auto it = std::find_if(scene.obstacles.begin(), scene.obstacles.end(),
+                               [&](const sim::ObstacleSpec& s) { return s.id == id; });
+  return it != scene.obstacles.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
+}
+
 }  // namespace
 
 // The simulator's exact left disparity as the matcher's output would be (Q4, kInvalidDisp where the
@@ -76,6 +83,8 @@ ImageI16 oracle_disparity_q4(const Image<float>& disparity_px, int max_disparity
 
 std::vector<robot::CircleObstacle> oracle_world_circles(const std::vector<sim::Footprint>& now,
                                                         const std::vector<sim::Footprint>& later, double dt_s) {
+  // The velocity over the next dt_s, not ObstacleSpec::velocity_at(t): across a mover's turn it already points
+  // the new way (session 45's oracle figures were measured with it).
   std::vector<robot::CircleObstacle> out;
   for (const sim::Footprint& f : now) {
     Vec2 vel{};
@@ -674,9 +683,7 @@ LoopResult RobotLoop::run() {
   if (I.world) {
     std::vector<CircleObstacle> statics;
     for (const auto& f : I.world->obstacles_at(0.0)) {
-      const auto& spec = I.world->scene().obstacles;
-      const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& s) { return s.id == f.id; });
-      if (it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0)) continue;
+      if (scene_obstacle_moves(I.world->scene(), f.id)) continue;
       const double r = f.circle ? f.radius_m : std::hypot(f.half_length_m, f.half_width_m);
       statics.push_back({{f.x_m, f.y_m}, r, {}});
     }
@@ -1189,11 +1196,7 @@ LoopResult RobotLoop::run() {
       std::vector<sim::Footprint> now = I.world->obstacles_at(t_now);
       if (opt.oracle_world_seen)
         std::erase_if(now, [&](const sim::Footprint& f) { return oracle_seen_ids.count(f.id) == 0; });
-      const auto& spec = I.world->scene().obstacles;
-      const auto is_mover = [&](int id) {
-        const auto it = std::find_if(spec.begin(), spec.end(), [&](const sim::ObstacleSpec& s) { return s.id == id; });
-        return it != spec.end() && (it->vx_mps != 0.0 || it->vy_mps != 0.0);
-      };
+      const auto is_mover = [&](int id) { return scene_obstacle_moves(I.world->scene(), id); };
       if (opt.oracle_part == "movers+") {
         std::erase_if(now, [&](const sim::Footprint& f) { return !is_mover(f.id); });  // added, nothing removed
       } else if (!opt.oracle_part.empty()) {
