@@ -72,7 +72,8 @@ void print_result(const LoopResult& r) {
 // adds to them) are every scene obstacle the camera has seen so far, known exactly from then on; world:
 // every scene obstacle, in view or not; movers-seen / statics-seen: only the moving / the static scene obstacles
 // seen so far are the truth, the loop's own obstacles of the other kind stay; movers-seen-added: the movers seen so
-// far, exact, added to the loop's own list (nothing removed). With the world levels perception runs as usual (its output is
+// far, exact, added to the loop's own list (nothing removed); -cv (movers-seen-cv, world-seen-cv): out of view each is
+// where its exact state at its last sighting extrapolates at constant velocity (a perfect tracker's prediction). With the world levels perception runs as usual (its output is
 // recorded, the ground-seen-ahead stop still reads it); only the planner's obstacle list is the truth.
 void set_oracle(LoopOptions& lo, const std::string& level) {
   lo.oracle_disparity = level == "disparity" || level == "detections";
@@ -80,7 +81,10 @@ void set_oracle(LoopOptions& lo, const std::string& level) {
   const bool seen = level.find("-seen") != std::string::npos;  // world-seen, movers-seen[-added], statics-seen
   lo.oracle_world = level == "world" || seen;
   lo.oracle_world_seen = seen;
-  lo.oracle_part = level == "movers-seen"         ? "movers"
+  lo.oracle_labels = level.starts_with("mover-labels");
+  lo.oracle_label_velocity = level == "mover-labels-velocity";
+  lo.oracle_coast = level.ends_with("-cv");  // movers-seen-cv, world-seen-cv
+  lo.oracle_part = level == "movers-seen" || level == "movers-seen-cv" ? "movers"
                    : level == "movers-seen-added" ? "movers+"
                    : level == "statics-seen"      ? "statics"
                                                   : "";
@@ -91,9 +95,12 @@ void add_oracle_option(CLI::App* c, std::string& level) {
                 "Simulator diagnostic: replace a layer by the truth - disparity (the matcher's map), detections (the "
                 "detector's output), world-seen (the planner gets every obstacle seen so far, exactly), world (every "
                 "obstacle, in view or not), movers-seen / statics-seen (only the moving / static ones seen so far), "
-                "movers-seen-added (the movers seen so far added to the loop's own obstacles)")
-      ->check(CLI::IsMember({"disparity", "detections", "movers-seen", "movers-seen-added", "statics-seen",
-                             "world-seen", "world"}));
+                "movers-seen-added (the movers seen so far added to the loop's own obstacles); -cv: out of view, each "
+                "where a perfect constant-velocity tracker would predict it from its last sighting (movers-seen-cv, "
+                "world-seen-cv); mover-labels (the loop's moving test replaced by the truth), mover-labels-velocity (and the movers' "
+                "tracks coasted from their last measurement at the true velocity)")
+      ->check(CLI::IsMember({"disparity", "detections", "mover-labels", "mover-labels-velocity", "movers-seen", "movers-seen-cv", "movers-seen-added",
+                             "statics-seen", "world-seen", "world-seen-cv", "world"}));
 }
 
 struct RunOptions {

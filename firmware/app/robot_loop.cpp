@@ -724,6 +724,8 @@ LoopResult RobotLoop::run() {
   bool ground_unseen = false;  // the ground-seen-ahead stop is engaged ([robot] ground_ahead_min_pct)
   std::vector<CircleObstacle> unseen_obstacles;  // ... the obstacles it left (world frame; see below)
   std::set<int> oracle_seen_ids;                 // LoopOptions::oracle_world_seen: scene obstacles seen so far
+  // LoopOptions::oracle_coast: each seen scene obstacle's circles (true velocity) at its last sighting, and when
+  std::map<int, std::pair<double, std::vector<CircleObstacle>>> oracle_last_seen;
   double look_around_turned = is_sim && opt.look_around ? 0.0 : 2.0 * M_PI;  // blocked: how far the robot has turned looking for a way
   constexpr double kScanYawRate = 1.2;   // [rad/s]
   // Sensing action ([loop] look_before_turn_m): the track being looked for, where it was last
@@ -1073,7 +1075,24 @@ LoopResult RobotLoop::run() {
         // gives no mover; with static_track_keep_circles it may still give a near-track circle or a
         // reachable set (zero velocity), otherwise nothing. (Seed 11: these tracks closed the gaps of
         // gap walls with 0.5-1 m circles and made robots evade static obstacles.)
-        const bool supported = static_support(tr);
+        // LoopOptions::oracle_labels: is the scene obstacle nearest the track's last measurement (within 0.3 m of its
+        // footprint) a mover? (-1: not a simulator run with that level)
+        int true_mover = -1;
+        Vec2 true_vel;  // ... its velocity then (LoopOptions::oracle_label_velocity)
+        if (opt.oracle_labels) {
+          double best = 0.3;
+          true_mover = 0;
+          const double t_meas = robot::ns_to_s(tr.last_meas_ns);
+          const auto later = I.world->obstacles_at(t_meas + 0.1);
+          for (const sim::Footprint& f : I.world->obstacles_at(t_meas))
+            for (const CircleObstacle& c : oracle_world_circles({f}, later, 0.1))
+              if (const double d = robot::norm(c.c - tr.last_meas_p) - c.r; d < best) {
+                best = d;
+                true_mover = scene_obstacle_moves(I.world->scene(), f.id) ? 1 : 0;
+                true_vel = c.vel;
+              }
+        }
+        const bool supported = true_mover == 1 ? false : static_support(tr);
         if (supported && !lp.static_track_keep_circles) continue;
         // The moving test (robot::moving_test); its verdict (the first condition that failed, or
         // "mover") is logged per track in the run record (`tracks[].moving_test`, session 41). Why each
@@ -1094,7 +1113,9 @@ LoopResult RobotLoop::run() {
         mt_in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
         if (lp.moving_window_s > 0) mt_in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
         mt_in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
-        const char* verdict = robot::moving_test(moving_params, mt_in);
+        const char* verdict = true_mover < 0 ? robot::moving_test(moving_params, mt_in)
+                              : true_mover == 1 ? "mover"
+                                                : "oracle: static";
         moving_verdict.emplace_back(tr.id, verdict);
         const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
@@ -1165,7 +1186,10 @@ LoopResult RobotLoop::run() {
           }
           continue;
         }
-        obstacles.push_back(o);
+        if (opt.oracle_label_velocity && true_mover == 1)  // the track's last measurement, coasted at the true velocity
+          obstacles.push_back({tr.last_meas_p + age_s * true_vel, o.r, true_vel});
+        else
+          obstacles.push_back(o);
         kinds.push_back('v');
       }
       tracker.mark_movers(mover_ids);
@@ -1191,9 +1215,15 @@ LoopResult RobotLoop::run() {
     }
     if (opt.oracle_world) {  // LoopOptions::oracle_world: the truth instead of everything above
       const double t_now = robot::ns_to_s(t_frame - t0);
+      std::set<int> seen_now;
       for (const auto& o : rr.obstacles)
-        if (o.visible_pixels >= 50 && o.distance_m > 0 && o.distance_m <= lp.map_range_m) oracle_seen_ids.insert(o.id);
+        if (o.visible_pixels >= 50 && o.distance_m > 0 && o.distance_m <= lp.map_range_m) seen_now.insert(o.id);
+      oracle_seen_ids.insert(seen_now.begin(), seen_now.end());
       std::vector<sim::Footprint> now = I.world->obstacles_at(t_now);
+      const std::vector<sim::Footprint> later = I.world->obstacles_at(t_now + 0.1);
+      if (opt.oracle_coast)
+        for (const sim::Footprint& f : now)
+          if (seen_now.count(f.id)) oracle_last_seen[f.id] = {t_now, oracle_world_circles({f}, later, 0.1)};
       if (opt.oracle_world_seen)
         std::erase_if(now, [&](const sim::Footprint& f) { return oracle_seen_ids.count(f.id) == 0; });
       const auto is_mover = [&](int id) { return scene_obstacle_moves(I.world->scene(), id); };
@@ -1218,7 +1248,20 @@ LoopResult RobotLoop::run() {
         kinds.clear();
         unseen_obstacles.clear();
       }
-      std::vector<CircleObstacle> truth = oracle_world_circles(now, I.world->obstacles_at(t_now + 0.1), 0.1);
+      std::vector<CircleObstacle> truth;
+      for (const sim::Footprint& f : now) {
+        const auto last = oracle_last_seen.find(f.id);
+        if (!opt.oracle_coast || last == oracle_last_seen.end()) {
+          const auto c = oracle_world_circles({f}, later, 0.1);
+          truth.insert(truth.end(), c.begin(), c.end());
+          continue;
+        }
+        // oracle_coast: where a perfect tracker would predict it - its last sighting's state, constant velocity
+        for (CircleObstacle c : last->second.second) {
+          c.c = c.c + (t_now - last->second.first) * c.vel;
+          truth.push_back(c);
+        }
+      }
       std::erase_if(truth, [&](const CircleObstacle& c) { return robot::norm(c.c - pose.pos()) - c.r > lp.plan_radius_m; });
       obstacles.insert(obstacles.end(), truth.begin(), truth.end());
       kinds.append(truth.size(), 't');

@@ -74,6 +74,17 @@ struct LoopOptions {
   // soft memory go) or "statics" (the other way round); "movers+" = the movers seen so far added to the loop's
   // own list, nothing removed; "" = all of it.
   std::string oracle_part;
+  // ... and each obstacle out of view where a perfect constant-velocity tracker would predict it: its exact position
+  // and velocity at the last frame it was seen, extrapolated at that velocity (its turns and stops since then unknown;
+  // session 46). In view it is exact, as above.
+  bool oracle_coast = false;
+  // A rung of its own (session 46): the loop's moving test replaced by the truth - a confirmed track whose last
+  // measurement lies within 0.3 m of a scene mover's footprint (nearer than to any other obstacle) is a mover, with
+  // the tracker's own position and velocity; any other track is not. Everything else is the loop's.
+  bool oracle_labels = false;
+  // ... and such a track's circle is its last measurement coasted at the mover's true velocity at that time (radius and
+  // uncertainty growth the tracker's).
+  bool oracle_label_velocity = false;
   bool quiet = false;            // no per-frame line on stderr
   std::function<void(const nlohmann::json& frame)> on_frame;  // telemetry tap (serial link)
   // Called after the matcher of every frame with its inputs and outputs (snapshot over the link).

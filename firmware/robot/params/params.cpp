@@ -58,6 +58,8 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.velocity_measurement = v.flag("tracker.velocity_measurement");
   p.max_speed_mps = v.num("tracker.max_speed_mps");
   p.static_gate_m = v.num("tracker.static_gate_m");
+  p.reacquire_speed_mps = v.num("tracker.reacquire_speed_mps");
+  p.reacquire_min_coast_s = v.num("tracker.reacquire_min_coast_s");
   return p;
 }
 

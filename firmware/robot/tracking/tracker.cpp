@@ -100,6 +100,41 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     meas_of[c.ti] = c.mi;
     used[c.mi] = 1;
   }
+  // 2b. re-acquisition of coasting movers (reacquire_speed_mps > 0, docs/robot.md "Session 46"). A mover's
+  // coasted prediction drifts at its velocity error (0.1-0.4 m/s on the vision measurements: 1-3 m after
+  // seconds out of view), beyond the gate, and its measurements then start a new track that knows no velocity
+  // and fails the loop's moving test for 1-2 s, while the old one coasts on as a phantom. What cannot be wrong
+  // is where the track was last measured and how fast an obstacle can go: a left-over measurement within that
+  // reach of a coasting track's last measurement is its obstacle (the nearest relative to the reach first); the
+  // update's finite-difference velocity then spans the whole gap. Not for tracks last measured on old map cells
+  // (static obstacles' tracks; the loop's moving test would not trust them anyway) nor for such measurements.
+  // Every confirmed track, not only the loop's movers: a young mover's track (3-4 hits) has not passed the moving
+  // test yet, and its velocity from 0.2 s differences is the least reliable of all (session 46).
+  if (p_.reacquire_speed_mps > 0) {
+    std::vector<Cand> re;
+    for (int ti = 0; ti < static_cast<int>(tracks_.size()); ++ti) {
+      const Track& tr = tracks_[ti];
+      const double dtm = ns_to_s(t_ns - tr.last_meas_ns);
+      if (meas_of[ti] >= 0 || !tr.confirmed || tr.last_meas_static || dtm < p_.reacquire_min_coast_s) continue;
+      for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
+        const ObstacleMeasurement& m = meas[mi];
+        if (used[mi] || m.static_cells) continue;
+        const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+        const double reach = p_.reacquire_speed_mps * dtm + 3.0 * std::sqrt(sigma * sigma + tr.last_meas_var) +
+                             std::abs(m.radius_m - tr.last_meas_radius_m);
+        const double d = norm(m.p - tr.last_meas_p);
+        if (d <= reach) re.push_back({d / reach, ti, mi});
+      }
+    }
+    std::sort(re.begin(), re.end(), [](const Cand& a, const Cand& b) {
+      return a.d != b.d ? a.d < b.d : (a.ti != b.ti ? a.ti < b.ti : a.mi < b.mi);
+    });
+    for (const Cand& c : re) {
+      if (meas_of[c.ti] >= 0 || used[c.mi]) continue;
+      meas_of[c.ti] = c.mi;
+      used[c.mi] = 1;
+    }
+  }
 
   // 3. update associated tracks (eq. 31-32), count misses of the others.
   for (int ti = 0; ti < static_cast<int>(tracks_.size()); ++ti) {

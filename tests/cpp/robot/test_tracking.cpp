@@ -594,12 +594,50 @@ TEST(Tracker, StaticGateKeepsAStaticTrackOffAFarMover) {
   EXPECT_LT(norm(mt.tracks()[0].last_meas_p - Vec2{2.25, 0.0}), 1e-9);
 }
 
+TEST(Tracker, ReacquisitionKeepsACoastingMoversIdentityAndMeasuresItsVelocityOverTheGap) {
+  // A mover walks +x at 0.5 m/s in view, leaves the view for 5 s, and turns back meanwhile: it reappears 0.5 m
+  // behind where it was last measured, 3 m from its coasted prediction (beyond gate_max_m).
+  const auto run = [](double reacquire_speed_mps, bool static_cells, double back_m) {
+    TrackerParams tp;
+    tp.reacquire_speed_mps = reacquire_speed_mps;
+    MultiTracker mt(tp);
+    bool in_view = true;
+    auto vis = [&](Vec2) { return in_view; };
+    int f = 0;
+    for (; f < 10; ++f) mt.step(s_to_ns(0.2 * f), {{{1.0 + 0.1 * f, 0.5}, 0.15, 0, 0.03}}, vis);
+    const Track first = mt.tracks().at(0);
+    in_view = false;
+    for (; f < 35; ++f) mt.step(s_to_ns(0.2 * f), {}, vis);
+    in_view = true;
+    ObstacleMeasurement m{{first.last_meas_p.x - back_m, 0.5}, 0.15, 0, 0.03};
+    m.static_cells = static_cells;
+    mt.step(s_to_ns(0.2 * f), {m}, vis);
+    const Track* upd = nullptr;
+    for (const Track& tr : mt.tracks())
+      if (tr.updated_this_frame) upd = &tr;
+    EXPECT_NE(upd, nullptr);
+    EXPECT_GT(norm(first.pos() + 5.0 * first.vel() - m.p), tp.gate_max_m) << "the test needs a drift beyond the gate";
+    return std::make_pair(upd->id == first.id, upd->vel());
+  };
+  const auto [same_off, v_off] = run(0.0, false, 0.5);
+  EXPECT_FALSE(same_off) << "without re-acquisition the mover starts a new track";
+  const auto [same_on, v_on] = run(0.5, false, 0.5);
+  EXPECT_TRUE(same_on);
+  // The finite difference over the 5 s gap is -0.1 m/s; the filter's coasted +0.5 m/s gives way to it.
+  EXPECT_NEAR(v_on.x, -0.1, 0.1);
+  EXPECT_NEAR(v_on.y, 0.0, 0.05);
+  EXPECT_FALSE(run(0.5, true, 0.5).first) << "a measurement on old map cells is a static obstacle's";
+  EXPECT_FALSE(run(0.5, false, 3.5).first) << "beyond 0.5 m/s x 5 s + noise it is something else";
+}
+
 TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   const Config c = parse_config("", "default.toml");
   const TrackerParams t = tracker_params_from(c.values), d;
   EXPECT_DOUBLE_EQ(t.pos_sigma_m, d.pos_sigma_m);
   EXPECT_DOUBLE_EQ(t.max_speed_mps, d.max_speed_mps);
   EXPECT_DOUBLE_EQ(t.static_gate_m, d.static_gate_m);
+  EXPECT_DOUBLE_EQ(t.reacquire_speed_mps, d.reacquire_speed_mps);
+  EXPECT_DOUBLE_EQ(t.reacquire_min_coast_s, d.reacquire_min_coast_s);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
   EXPECT_EQ(t.max_misses, d.max_misses);
   EXPECT_DOUBLE_EQ(t.miss_sigmas, d.miss_sigmas);

@@ -70,6 +70,13 @@ struct TrackerParams {
                                     // (MultiTracker::mark_static: static support) or a measurement on
                                     // old map cells (static_cells) pair only within this distance of
                                     // the track's last measurement [m]; 0 = off (docs/robot.md "Session 35")
+  double reacquire_speed_mps = 0.0; // re-acquisition of coasting movers (docs/robot.md "Session 46"): a
+                                    // measurement left over by the gated association may pair with a confirmed
+                                    // track whose last measurement was not on old map cells and that has coasted at
+                                    // least reacquire_min_coast_s, when it lies within this speed x the time since the
+                                    // track's last measurement (+ 3 stds of both, + the change of half-width) of
+                                    // that measurement [m/s]; 0 = off
+  double reacquire_min_coast_s = 0.4;  // ... only tracks unmeasured for at least this long [s]
 };
 
 // [planner] — global grid A* + sampled-arc local planner.
