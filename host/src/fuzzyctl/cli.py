@@ -841,6 +841,42 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
     _write_json(json_out, r)
 
 
+@app.command("verdicts", short_help="The loop's moving-test verdicts of simulator run records against the truth.")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--near", "near_m", type=click.FloatRange(0, None, min_open=True), default=2.0, show_default=True,
+              help="Distance from the robot of the 'near' columns and of the coverage table [m].")
+@click.option("--json", "json_out", type=_path, default=None, help="Also write the tables as JSON.")
+def verdicts_cmd(run_dirs: tuple[Path, ...], near_m: float, json_out: Path | None) -> None:
+    """Score the robot loop's moving test (`tracks[].moving_test` of `fuzzystereo sim suite --record DIR`; pass run
+    directories or a suite's record directory) against the simulated world: the share of each verdict among the
+    confirmed tracks of moving and of static obstacles, and for the movers near the robot that were tracked before,
+    how often a confirmed track still covers them and with which verdict (docs/robot.md "Session 46")."""
+    from rich.table import Table
+
+    from .runreport import expand_run_dirs
+    from .verdicts import verdicts
+
+    r = verdicts(expand_run_dirs(list(run_dirs)), near_m=near_m)
+    v = r["verdicts"]
+    names = sorted({k for c in v.values() for k in c["share"]}, key=lambda k: (k != "mover", k))
+    t = Table(title=f"moving-test verdicts of confirmed tracks (track-frames), {r['records']} records")
+    t.add_column("verdict")
+    for col in ("movers", f"movers <= {near_m:g} m", "static", f"static <= {near_m:g} m"):
+        t.add_column(col, justify="right")
+    for k in names:
+        t.add_row(k, *(f"{100 * v[c]['share'].get(k, 0.0):.1f} %" for c in ("mover", "mover_near", "static", "static_near")))
+    t.add_row("(track-frames)", *(str(v[c]["n"]) for c in ("mover", "mover_near", "static", "static_near")))
+    console.print(t)
+    c = r["mover_coverage"]
+    u = Table(title=f"movers within {near_m:g} m of the robot, tracked before ({c['n']} mover-frames)")
+    u.add_column("best confirmed track within radius + {:g} m".format(r["cover_m"]))
+    u.add_column("share", justify="right")
+    for k, share in c["share"].items():
+        u.add_row(k, f"{100 * share:.1f} %")
+    console.print(u)
+    _write_json(json_out, r)
+
+
 @app.command("suite-diff", short_help="Scenario-by-scenario comparison of closed-loop suite results.")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
 @click.option("--time-change", type=click.FloatRange(0, None), default=None,

@@ -1,0 +1,108 @@
+"""The robot loop's moving-test verdicts of simulator run records, scored against the world's truth.
+
+Session 46's oracle rungs (docs/robot.md "Session 46") showed that the loop loses most where its moving test
+(``robot::moving_test``; each confirmed track's verdict is logged as ``tracks[].moving_test`` in ``frames.jsonl``)
+calls a mover's track static or a static obstacle's track a mover: with the true labels instead of the test
+(``--oracle mover-labels``) seeds 164-165 gave 195 of 200 goals and 3 contacts against the defaults' 188 and 9. A
+suite takes minutes per seed; this scores the verdicts of recorded runs in seconds, so a change of the test can be
+judged offline first.
+
+Two tables:
+
+- **verdicts per track-frame**: every confirmed track with a verdict whose last measurement lies within
+  ``match_m`` of a world circle's rim (the nearest), split by whether that obstacle moves, all of them and those
+  whose estimate is within ``near_m`` of the robot — the share of each verdict ("mover", "few hits", ...);
+- **coverage of known movers near the robot**: every frame and every moving obstacle within ``near_m`` (2 m) of
+  the robot that some confirmed track has covered before — is there now a confirmed track whose estimate lies
+  within the obstacle's radius + ``cover_m``, and what is the best one's verdict? "no track" splits into in view
+  and out of view (the camera's half field of view from the record's calibration).
+
+Matching is by circle only (the suite's obstacles; boxes and walls are static and left out, as in
+``track-errors``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from .errors import FatalError
+from .runreport import load_run
+from .simworld import obstacle_state
+from .trackerrors import world_circles
+
+
+def _half_fov_rad(run: dict[str, Any]) -> float:
+    c = run.get("calib") or {}
+    if "cx" in c and "focal_px" in c:
+        return math.atan2(c["cx"] + 0.5, c["focal_px"])
+    return math.radians(50.0)
+
+
+def _moves(o: dict[str, Any]) -> bool:
+    return bool(o.get("vx", 0.0) or o.get("vy", 0.0) or o.get("turns"))
+
+
+def _shares(c: Counter) -> dict[str, Any]:
+    n = sum(c.values())
+    return {"n": n, "share": {k: v / n for k, v in c.most_common()} if n else {}}
+
+
+def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, cover_m: float = 0.3) -> dict[str, Any]:
+    """Both tables over all records; FatalError naming a record without truth or without verdicts."""
+    if not run_dirs:
+        raise FatalError("no run record given")
+    per = {k: Counter() for k in ("mover", "mover_near", "static", "static_near")}
+    cover: Counter = Counter()
+    any_verdict = False
+    for run_dir in run_dirs:
+        run, frames = load_run(run_dir)
+        circles = world_circles(run, Path(run_dir))
+        half_fov = _half_fov_rad(run)
+        movers = [o for o in circles if _moves(o)]
+        covered_before: set[int] = set()
+        for f in frames:
+            if "true_pose" not in f or "tracks" not in f:
+                raise FatalError(f"{Path(run_dir) / 'frames.jsonl'}: frame {f.get('frame')} has no 'true_pose'/'tracks'")
+            x, y, th = f["true_pose"]
+            t = f["t"]
+            confirmed = [tr for tr in f["tracks"] if tr.get("confirmed")]
+            for tr in confirmed:
+                verdict = tr.get("moving_test")
+                if verdict is None:
+                    continue
+                any_verdict = True
+                t_meas = t - tr.get("age_s", 0.0)
+                best = None
+                for o in circles:
+                    ox, oy, _, _ = obstacle_state(o, t_meas)
+                    d = math.hypot(ox - tr["last"][0], oy - tr["last"][1]) - o["radius"]
+                    if best is None or d < best[0]:
+                        best = (d, o)
+                if best is None or best[0] > match_m:
+                    continue
+                kind = "mover" if _moves(best[1]) else "static"
+                per[kind][verdict] += 1
+                if math.hypot(tr["p"][0] - x, tr["p"][1] - y) <= near_m:
+                    per[kind + "_near"][verdict] += 1
+            for o in movers:
+                ox, oy, _, _ = obstacle_state(o, t)
+                on = [tr for tr in confirmed if math.hypot(tr["p"][0] - ox, tr["p"][1] - oy) <= o["radius"] + cover_m]
+                seen_before = o["id"] in covered_before
+                if on:
+                    covered_before.add(o["id"])
+                if not seen_before or math.hypot(ox - x, oy - y) > near_m:
+                    continue
+                if on:
+                    verdict_of = [tr.get("moving_test", "?") for tr in on]
+                    cover["mover track" if "mover" in verdict_of else f"only: {verdict_of[0]}"] += 1
+                else:
+                    bearing = abs((math.atan2(oy - y, ox - x) - th + math.pi) % (2 * math.pi) - math.pi)
+                    cover["no track, in view" if bearing < half_fov else "no track, out of view"] += 1
+    if not any_verdict:
+        raise FatalError("no track in these records carries a moving-test verdict (tracks[].moving_test, "
+                         "recorded since session 41): record with a current `fuzzystereo sim suite --record DIR`")
+    return {"records": len(run_dirs), "match_m": match_m, "near_m": near_m, "cover_m": cover_m,
+            "verdicts": {k: _shares(c) for k, c in per.items()}, "mover_coverage": _shares(cover)}
