@@ -84,10 +84,11 @@ void set_oracle(LoopOptions& lo, const std::string& level) {
   lo.oracle_labels = level.starts_with("mover-labels");
   lo.oracle_label_velocity = level == "mover-labels-velocity";
   lo.oracle_coast = level.ends_with("-cv");  // movers-seen-cv, world-seen-cv
-  lo.oracle_part = level == "movers-seen" || level == "movers-seen-cv" ? "movers"
-                   : level == "movers-seen-added" ? "movers+"
-                   : level == "statics-seen"      ? "statics"
-                                                  : "";
+  using Part = LoopOptions::OraclePart;
+  lo.oracle_part = level == "movers-seen" || level == "movers-seen-cv" ? Part::kMovers
+                   : level == "movers-seen-added"                       ? Part::kMoversAdded
+                   : level == "statics-seen"                            ? Part::kStatics
+                                                                        : Part::kAll;
 }
 
 void add_oracle_option(CLI::App* c, std::string& level) {

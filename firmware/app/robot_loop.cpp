@@ -1227,10 +1227,11 @@ LoopResult RobotLoop::run() {
       if (opt.oracle_world_seen)
         std::erase_if(now, [&](const sim::Footprint& f) { return oracle_seen_ids.count(f.id) == 0; });
       const auto is_mover = [&](int id) { return scene_obstacle_moves(I.world->scene(), id); };
-      if (opt.oracle_part == "movers+") {
+      using Part = LoopOptions::OraclePart;
+      if (opt.oracle_part == Part::kMoversAdded) {
         std::erase_if(now, [&](const sim::Footprint& f) { return !is_mover(f.id); });  // added, nothing removed
-      } else if (!opt.oracle_part.empty()) {
-        const bool movers = opt.oracle_part == "movers";
+      } else if (opt.oracle_part != Part::kAll) {
+        const bool movers = opt.oracle_part == Part::kMovers;
         std::erase_if(now, [&](const sim::Footprint& f) { return is_mover(f.id) != movers; });
         // the loop's own obstacles of the other part stay: static ones are map cells (m, f) and bodies (b), the
         // rest (v, n, r, l) come from tracks; the unseen-ground discs (g, added below) stay in both
@@ -1248,18 +1249,18 @@ LoopResult RobotLoop::run() {
         kinds.clear();
         unseen_obstacles.clear();
       }
+      // oracle_coast: each where a perfect tracker would predict it - its last sighting's circles (every obstacle
+      // left in `now` has been seen, and is recorded in the frame it is seen), moved on at their velocity
       std::vector<CircleObstacle> truth;
-      for (const sim::Footprint& f : now) {
-        const auto last = oracle_last_seen.find(f.id);
-        if (!opt.oracle_coast || last == oracle_last_seen.end()) {
-          const auto c = oracle_world_circles({f}, later, 0.1);
-          truth.insert(truth.end(), c.begin(), c.end());
-          continue;
-        }
-        // oracle_coast: where a perfect tracker would predict it - its last sighting's state, constant velocity
-        for (CircleObstacle c : last->second.second) {
-          c.c = c.c + (t_now - last->second.first) * c.vel;
-          truth.push_back(c);
+      if (!opt.oracle_coast) {
+        truth = oracle_world_circles(now, later, 0.1);
+      } else {
+        for (const sim::Footprint& f : now) {
+          const auto& [t_seen, circles] = oracle_last_seen.at(f.id);
+          for (CircleObstacle c : circles) {
+            c.c = c.c + (t_now - t_seen) * c.vel;
+            truth.push_back(c);
+          }
         }
       }
       std::erase_if(truth, [&](const CircleObstacle& c) { return robot::norm(c.c - pose.pos()) - c.r > lp.plan_radius_m; });
@@ -1278,7 +1279,7 @@ LoopResult RobotLoop::run() {
     // contacts of sessions 26-29 are arcs that turn into a side where such a mover was seen seconds
     // before, while hard circles there (reachable sets, look-before-turn) cost more timeouts than they saved.
     std::vector<CircleObstacle> memory;
-    if (I.pp.w_memory > 0 && lp.memory_s > 0 && !(opt.oracle_world && opt.oracle_part == "movers")) {
+    if (I.pp.w_memory > 0 && lp.memory_s > 0 && !(opt.oracle_world && opt.oracle_part == LoopOptions::OraclePart::kMovers)) {
       const auto remember = [&](const robot::Track& tr) {
         if (!tr.confirmed) return;
         const double age_s = robot::ns_to_s(t_frame - t0 - tr.last_meas_ns);

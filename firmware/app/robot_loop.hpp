@@ -69,11 +69,12 @@ struct LoopOptions {
   // ... only the obstacles the camera has seen so far (at least 50 pixels within [loop] map_range_m in some
   // frame), each then known exactly from that frame on: perfect tracking and memory, the real field of view.
   bool oracle_world_seen = false;
-  // ... only part of the planner's list is the truth: "movers" (the scene's moving obstacles seen so far, exact; the
+  // ... only part of the planner's list is the truth: kMovers (the scene's moving obstacles seen so far, exact; the
   // loop's own static obstacles - map cells, fitted bodies, unseen ground - stay, its mover-related ones and the
-  // soft memory go) or "statics" (the other way round); "movers+" = the movers seen so far added to the loop's
-  // own list, nothing removed; "" = all of it.
-  std::string oracle_part;
+  // soft memory go) or kStatics (the other way round); kMoversAdded = the movers seen so far added to the loop's
+  // own list, nothing removed; kAll = all of it.
+  enum class OraclePart { kAll, kMovers, kMoversAdded, kStatics };
+  OraclePart oracle_part = OraclePart::kAll;
   // ... and each obstacle out of view where a perfect constant-velocity tracker would predict it: its exact position
   // and velocity at the last frame it was seen, extrapolated at that velocity (its turns and stops since then unknown;
   // session 46). In view it is exact, as above.

@@ -73,7 +73,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       // predicted-position gate alone is up to gate_max_m wide for a young track (its velocity std
       // is init_vel_sigma_mps), so the fragments of a gap wall 0.3 m apart chained into confirmed
       // tracks "travelling" at 0.4-5 m/s (seed-11 suite; docs/robot.md "Association").
-      const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+      const double sigma = meas_sigma(m);
       const double speed_gate = p_.max_speed_mps * dtm + kSpeedGateSigmas * std::sqrt(sigma * sigma + tr.last_meas_var) +
                                 std::abs(m.radius_m - tr.last_meas_radius_m);
       if (p_.max_speed_mps > 0 && norm(m.p - tr.last_meas_p) > speed_gate) continue;
@@ -89,17 +89,22 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       cands.push_back({d, ti, mi});
     }
   }
-  std::sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) {
-    return a.d != b.d ? a.d < b.d : (a.ti != b.ti ? a.ti < b.ti : a.mi < b.mi);
-  });
   std::vector<int> meas_of(tracks_.size(), -1);
   std::vector<char> used(meas.size(), 0);
   std::vector<std::pair<int, int>> assoc;
-  for (const Cand& c : cands) {
-    if (meas_of[c.ti] >= 0 || used[c.mi]) continue;
-    meas_of[c.ti] = c.mi;
-    used[c.mi] = 1;
-  }
+  // Greedy: the pairs in increasing d (ties by index, so deterministic), each taken when its track and its
+  // measurement are both still free.
+  const auto take_nearest_first = [&](std::vector<Cand>& pairs) {
+    std::sort(pairs.begin(), pairs.end(), [](const Cand& a, const Cand& b) {
+      return a.d != b.d ? a.d < b.d : (a.ti != b.ti ? a.ti < b.ti : a.mi < b.mi);
+    });
+    for (const Cand& c : pairs) {
+      if (meas_of[c.ti] >= 0 || used[c.mi]) continue;
+      meas_of[c.ti] = c.mi;
+      used[c.mi] = 1;
+    }
+  };
+  take_nearest_first(cands);
   // 2b. re-acquisition of coasting movers (reacquire_speed_mps > 0, docs/robot.md "Session 46"). A mover's
   // coasted prediction drifts at its velocity error (0.1-0.4 m/s on the vision measurements: 1-3 m after
   // seconds out of view), beyond the gate, and its measurements then start a new track that knows no velocity
@@ -119,21 +124,14 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
         const ObstacleMeasurement& m = meas[mi];
         if (used[mi] || m.static_cells) continue;
-        const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+        const double sigma = meas_sigma(m);
         const double reach = p_.reacquire_speed_mps * dtm + 3.0 * std::sqrt(sigma * sigma + tr.last_meas_var) +
                              std::abs(m.radius_m - tr.last_meas_radius_m);
         const double d = norm(m.p - tr.last_meas_p);
         if (d <= reach) re.push_back({d / reach, ti, mi});
       }
     }
-    std::sort(re.begin(), re.end(), [](const Cand& a, const Cand& b) {
-      return a.d != b.d ? a.d < b.d : (a.ti != b.ti ? a.ti < b.ti : a.mi < b.mi);
-    });
-    for (const Cand& c : re) {
-      if (meas_of[c.ti] >= 0 || used[c.mi]) continue;
-      meas_of[c.ti] = c.mi;
-      used[c.mi] = 1;
-    }
+    take_nearest_first(re);
   }
 
   // 3. update associated tracks (eq. 31-32), count misses of the others.
@@ -158,7 +156,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       continue;
     }
     const ObstacleMeasurement& m = meas[mi];
-    const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+    const double sigma = meas_sigma(m);
     const double var = sigma * sigma;
     const double dtm = ns_to_s(t_ns - tr.last_meas_ns);
     if (switching()) {
@@ -224,7 +222,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
   for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
     if (used[mi]) continue;
     const ObstacleMeasurement& m = meas[mi];
-    const double sigma = m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m;
+    const double sigma = meas_sigma(m);
     Track tr;
     tr.id = next_id_++;
     tr.kf.init(m.p.x, m.p.y, sigma * sigma, p_.init_vel_sigma_mps * p_.init_vel_sigma_mps);

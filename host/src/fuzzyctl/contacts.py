@@ -44,13 +44,9 @@ from typing import Any
 
 from .errors import FatalError
 from .runreport import load_run
-from .simworld import obstacle_state
+from .simworld import obstacle_moves, obstacle_state, wrap_angle
 
 CLASSES = ("static", "never seen", "struck standing", "in view", "side, turning into it", "side")
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def half_fov_rad(run: dict[str, Any]) -> float:
@@ -59,10 +55,6 @@ def half_fov_rad(run: dict[str, Any]) -> float:
     if not isinstance(c, dict) or "cx" not in c or "focal_px" not in c:
         raise FatalError("run.json: no 'calib' with 'cx' and 'focal_px' (needed for the camera's view)")
     return math.atan2(float(c["cx"]) + 0.5, float(c["focal_px"]))
-
-
-def _moving(o: dict[str, Any]) -> bool:
-    return bool(o.get("vx", 0.0) or o.get("vy", 0.0) or any(k[1] or k[2] for k in o.get("turns", [])))
 
 
 def ground_ahead_min_pct(frames: list[dict[str, Any]], t_from: float) -> float | None:
@@ -132,8 +124,8 @@ def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float
         return out
     clr, o = best
     ox, oy, ovx, ovy = obstacle_state(o, t_end)
-    bearing = _wrap(math.atan2(oy - ry, ox - rx) - rth)
-    mover = _moving(o)
+    bearing = wrap_angle(math.atan2(oy - ry, ox - rx) - rth)
+    mover = obstacle_moves(o)
     first_view = last_view = None
     last_track: dict[str, Any] | None = None
     last_track_t = None
@@ -141,7 +133,7 @@ def trace_contact(run_dir: Path, max_clearance_m: float = 0.1, moving_mps: float
         t = float(f["t"])
         fx, fy, fth = f["true_pose"]
         px, py, _, _ = obstacle_state(o, t)
-        b = _wrap(math.atan2(py - fy, px - fx) - fth)
+        b = wrap_angle(math.atan2(py - fy, px - fx) - fth)
         if abs(b) < hf and math.hypot(px - fx, py - fy) < view_range_m:
             first_view = t if first_view is None else first_view
             last_view = t

@@ -1,6 +1,7 @@
 """Obstacles of a simulator run record (`run.json` "world"), as the firmware's `sim::ObstacleSpec`."""
 from __future__ import annotations
 
+import math
 from typing import Any
 
 
@@ -20,3 +21,13 @@ def obstacle_state(o: dict[str, Any], t: float) -> tuple[float, float, float, fl
         x, y = x + (tk - t0) * vx, y + (tk - t0) * vy
         t0, vx, vy = tk, kx, ky
     return x + (t - t0) * vx, y + (t - t0) * vy, vx, vy
+
+
+def obstacle_moves(o: dict[str, Any]) -> bool:
+    """Whether a recorded obstacle ever moves (a start velocity, or a turn to a nonzero one)."""
+    return bool(o.get("vx", 0.0) or o.get("vy", 0.0) or any(k[1] or k[2] for k in o.get("turns", [])))
+
+
+def wrap_angle(a: float) -> float:
+    """a [rad] wrapped into [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi

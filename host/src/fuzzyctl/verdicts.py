@@ -28,21 +28,11 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from .contacts import half_fov_rad
 from .errors import FatalError
 from .runreport import load_run
-from .simworld import obstacle_state
+from .simworld import obstacle_moves, obstacle_state, wrap_angle
 from .trackerrors import world_circles
-
-
-def _half_fov_rad(run: dict[str, Any]) -> float:
-    c = run.get("calib") or {}
-    if "cx" in c and "focal_px" in c:
-        return math.atan2(c["cx"] + 0.5, c["focal_px"])
-    return math.radians(50.0)
-
-
-def _moves(o: dict[str, Any]) -> bool:
-    return bool(o.get("vx", 0.0) or o.get("vy", 0.0) or o.get("turns"))
 
 
 def _shares(c: Counter) -> dict[str, Any]:
@@ -60,8 +50,8 @@ def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, co
     for run_dir in run_dirs:
         run, frames = load_run(run_dir)
         circles = world_circles(run, Path(run_dir))
-        half_fov = _half_fov_rad(run)
-        movers = [o for o in circles if _moves(o)]
+        half_fov = half_fov_rad(run)
+        movers = [o for o in circles if obstacle_moves(o)]
         covered_before: set[int] = set()
         for f in frames:
             if "true_pose" not in f or "tracks" not in f:
@@ -83,7 +73,7 @@ def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, co
                         best = (d, o)
                 if best is None or best[0] > match_m:
                     continue
-                kind = "mover" if _moves(best[1]) else "static"
+                kind = "mover" if obstacle_moves(best[1]) else "static"
                 per[kind][verdict] += 1
                 if math.hypot(tr["p"][0] - x, tr["p"][1] - y) <= near_m:
                     per[kind + "_near"][verdict] += 1
@@ -99,7 +89,7 @@ def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, co
                     verdict_of = [tr.get("moving_test", "?") for tr in on]
                     cover["mover track" if "mover" in verdict_of else f"only: {verdict_of[0]}"] += 1
                 else:
-                    bearing = abs((math.atan2(oy - y, ox - x) - th + math.pi) % (2 * math.pi) - math.pi)
+                    bearing = abs(wrap_angle(math.atan2(oy - y, ox - x) - th))
                     cover["no track, in view" if bearing < half_fov else "no track, out of view"] += 1
     if not any_verdict:
         raise FatalError("no track in these records carries a moving-test verdict (tracks[].moving_test, "

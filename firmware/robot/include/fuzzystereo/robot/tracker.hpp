@@ -115,6 +115,8 @@ class MultiTracker {
   void mark_static(const std::vector<int>& ids);
 
  private:
+  // A measurement's position std: its own, or pos_sigma_m when it has none.
+  double meas_sigma(const ObstacleMeasurement& m) const { return m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m; }
   // The maneuver switch is on (accel_sigma_steady_mps2 > 0), and a track's Q level.
   bool switching() const { return p_.accel_sigma_steady_mps2 > 0.0; }
   double q_level(const Track& tr) const {
