@@ -585,7 +585,14 @@ LoopResult RobotLoop::run() {
                                               lp.moving_window_travel_m, lp.moving_direction_near_m};
   const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps, lp.near_track_overlap};
   // This frame's moving-test verdicts of the confirmed tracks (id, verdict), for the record.
-  std::vector<std::pair<int, const char*>> moving_verdict;
+  // Each confirmed track's moving-test verdict and the inputs it was given (logged as tracks[].moving_test and
+  // tracks[].mt: `fuzzyctl verdicts --features` scores variants of the test offline, session 47).
+  struct MovingVerdict {
+    int id;
+    const char* verdict;
+    robot::MovingTestInput in;
+  };
+  std::vector<MovingVerdict> moving_verdict;
   const Detector detector(detect_params_from(I.cfg.values));
   robot::MultiTracker tracker(I.tp);
   robot::LostTracks lost_tracks;  // deleted confirmed tracks ([loop] reach_lost_tracks, look_before_turn_m)
@@ -1116,7 +1123,7 @@ LoopResult RobotLoop::run() {
         const char* verdict = true_mover < 0 ? robot::moving_test(moving_params, mt_in)
                               : true_mover == 1 ? "mover"
                                                 : "oracle: static";
-        moving_verdict.emplace_back(tr.id, verdict);
+        moving_verdict.push_back({tr.id, verdict, mt_in});
         const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
         // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
@@ -1566,8 +1573,20 @@ LoopResult RobotLoop::run() {
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
                      {"support", support_cells(tr)},
                      {"mover", tr.mover}});
-      for (const auto& [id, verdict] : moving_verdict)
-        if (id == tr.id) trs.back()["moving_test"] = verdict;
+      for (const MovingVerdict& mv : moving_verdict)
+        if (mv.id == tr.id) {
+          trs.back()["moving_test"] = mv.verdict;
+          const robot::MovingTestInput& m = mv.in;
+          trs.back()["mt"] = {{"static_meas", m.static_measurement}, {"static_support", m.static_support},
+                              {"hits", m.hits},                      {"vel", {m.vel.x, m.vel.y}},
+                              {"travel", {m.travel.x, m.travel.y}},  {"life_s", m.life_s},
+                              {"end_var", m.end_var_m2},             {"recent", {m.recent_travel.x, m.recent_travel.y}},
+                              {"robot_dist", m.robot_dist_m}};
+          for (const auto& [key, win_s] : {std::pair{"travel_1s", 1.0}, std::pair{"travel_2s", 2.0}}) {
+            const Vec2 d = tr.last_meas_p - tr.meas_since(robot::s_to_ns(win_s));
+            trs.back()["mt"][key] = {d.x, d.y};
+          }
+        }
     }
     fj["tracks"] = std::move(trs);
     if (!static_meas_p.empty()) {

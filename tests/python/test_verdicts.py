@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import subprocess
@@ -10,7 +11,7 @@ import sys
 import pytest
 
 from fuzzyctl.errors import FatalError
-from fuzzyctl.verdicts import verdicts
+from fuzzyctl.verdicts import moving_test, verdicts
 
 
 def _record(tmp_path, frames, world=None):
@@ -75,12 +76,25 @@ def test_cli_on_a_firmware_record(firmware_bin, tmp_path):
                         "--record", str(rec)], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     out = tmp_path / "v.json"
-    p = subprocess.run([sys.executable, "-m", "fuzzyctl", "verdicts", str(rec), "--json", str(out)],
-                       capture_output=True, text=True, timeout=120)
+    feats = tmp_path / "f.csv"
+    p = subprocess.run([sys.executable, "-m", "fuzzyctl", "verdicts", str(rec), "--json", str(out),
+                        "--features", str(feats)], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "moving-test verdicts" in p.stdout
     r = json.loads(out.read_text())
     assert r["records"] == 1
     assert r["verdicts"]["mover"]["n"] > 0 and r["verdicts"]["static"]["n"] > 0
     assert sum(r["verdicts"]["mover"]["share"].values()) == pytest.approx(1.0)
-
+    # The feature rows (tracks[].mt, session 47): the host's port of robot::moving_test gives every recorded
+    # verdict back from the recorded inputs — what makes offline scores of variants of the test meaningful.
+    with open(feats, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) >= r["verdicts"]["mover"]["n"] + r["verdicts"]["static"]["n"]
+    assert {row["truth"] for row in rows} >= {"mover", "static"}
+    for row in rows:
+        x = {k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()}
+        assert moving_test(x) == row["verdict"], row
+    # a variant moves verdicts: without a hit minimum no row is "few hits"
+    assert any(row["verdict"] == "few hits" for row in rows)
+    assert not any(moving_test({k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()},
+                               min_hits=0) == "few hits" for row in rows)

@@ -846,7 +846,10 @@ def contacts_cmd(run_dirs: tuple[Path, ...], json_out: Path | None) -> None:
 @click.option("--near", "near_m", type=click.FloatRange(0, None, min_open=True), default=2.0, show_default=True,
               help="Distance from the robot of the 'near' columns and of the coverage table [m].")
 @click.option("--json", "json_out", type=_path, default=None, help="Also write the tables as JSON.")
-def verdicts_cmd(run_dirs: tuple[Path, ...], near_m: float, json_out: Path | None) -> None:
+@click.option("--features", "features_out", type=_path, default=None,
+              help="Also write one CSV row per confirmed track-frame: the moving test's inputs, its verdict and the "
+                   "truth (records since session 47).")
+def verdicts_cmd(run_dirs: tuple[Path, ...], near_m: float, json_out: Path | None, features_out: Path | None) -> None:
     """Score the robot loop's moving test (`tracks[].moving_test` of `fuzzystereo sim suite --record DIR`; pass run
     directories or a suite's record directory) against the simulated world: the share of each verdict among the
     confirmed tracks of moving and of static obstacles, and for the movers near the robot that were tracked before,
@@ -875,6 +878,18 @@ def verdicts_cmd(run_dirs: tuple[Path, ...], near_m: float, json_out: Path | Non
         u.add_row(k, f"{100 * share:.1f} %")
     console.print(u)
     _write_json(json_out, r)
+    if features_out is not None:
+        import csv
+
+        from .verdicts import FEATURE_COLUMNS, feature_rows
+
+        rows = feature_rows(expand_run_dirs(list(run_dirs)))
+        features_out.parent.mkdir(parents=True, exist_ok=True)
+        with open(features_out, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=FEATURE_COLUMNS)
+            w.writeheader()
+            w.writerows(rows)
+        console.print(f"{len(rows)} track-frames -> {features_out}")
 
 
 @app.command("suite-diff", short_help="Scenario-by-scenario comparison of closed-loop suite results.")

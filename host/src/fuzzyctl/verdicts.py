@@ -40,6 +40,93 @@ def _shares(c: Counter) -> dict[str, Any]:
     return {"n": n, "share": {k: v / n for k, v in c.most_common()} if n else {}}
 
 
+def _truth_of(tr: dict[str, Any], circles: list[dict[str, Any]], t: float, match_m: float) -> str | None:
+    """"mover" / "static": the world circle nearest the track's last measurement (by its rim, at that
+    measurement's time), when within match_m; None otherwise."""
+    t_meas = t - tr.get("age_s", 0.0)
+    best = None
+    for o in circles:
+        ox, oy, _, _ = obstacle_state(o, t_meas)
+        d = math.hypot(ox - tr["last"][0], oy - tr["last"][1]) - o["radius"]
+        if best is None or d < best[0]:
+            best = (d, o)
+    if best is None or best[0] > match_m:
+        return None
+    return "mover" if obstacle_moves(best[1]) else "static"
+
+
+FEATURE_COLUMNS = ("record", "frame", "t", "track", "truth", "robot_dist", "verdict", "static_meas", "static_support",
+                   "hits", "speed", "vx", "vy", "tx", "ty", "life_s", "end_var", "age_s", "r", "t1x", "t1y", "t2x",
+                   "t2y")
+
+
+MOVING_TEST_DEFAULTS = {"min_hits": 4, "min_speed_mps": 0.04, "max_age_s": 8.0, "min_travel_m": 0.3,
+                        "travel_sigmas": 0.0, "window_s": 0.0, "window_travel_m": 0.1, "direction_near_m": 1.5}
+
+
+def moving_test(row: dict[str, Any], **params: float) -> str:
+    """``robot::moving_test`` (firmware/robot/planner/progress.cpp) on one feature row: its verdict with the
+    given parameters ([loop] moving_*; the defaults of common/config/default.toml otherwise). window_s may be
+    0, 1 or 2 (the recorded recent travels). Scores variants of the test on recorded inputs."""
+    p = {**MOVING_TEST_DEFAULTS, **params}
+    if row["static_meas"]:
+        return "static measurement"
+    if row["static_support"]:
+        return "static support"
+    if row["hits"] < p["min_hits"]:
+        return "few hits"
+    speed = math.hypot(row["vx"], row["vy"])
+    if speed < p["min_speed_mps"]:
+        return "slow"
+    if row["age_s"] > p["max_age_s"]:
+        return "old"
+    dist = math.hypot(row["tx"], row["ty"])
+    if dist < p["min_travel_m"] or dist < p["min_speed_mps"] * row["life_s"]:
+        return "short travel"
+    if p["travel_sigmas"] > 0 and dist < p["travel_sigmas"] * math.sqrt(row["end_var"]):
+        return "travel within noise"
+    if p["direction_near_m"] > 0 and row["robot_dist"] <= p["direction_near_m"]:
+        return "mover"
+    if p["window_s"] > 0:
+        key = {1.0: "t1", 2.0: "t2"}.get(float(p["window_s"]))
+        if key is None:
+            raise FatalError(f"window_s: the records hold the travel over 1 s and 2 s only, not {p['window_s']}")
+        rx, ry = row[key + "x"], row[key + "y"]
+        rd = math.hypot(rx, ry)
+        if rd >= p["window_travel_m"]:
+            return "mover" if rx * row["vx"] + ry * row["vy"] >= 0.7 * rd * speed else "direction"
+    return "mover" if row["tx"] * row["vx"] + row["ty"] * row["vy"] >= 0.7 * dist * speed else "direction"
+
+
+def feature_rows(run_dirs: list[Path], match_m: float = 0.3) -> list[dict[str, Any]]:
+    """One row per confirmed track-frame with a verdict and its inputs (``tracks[].mt``, recorded since session
+    47): the moving test's inputs, its verdict and the truth ("mover", "static" or "none" when no world circle
+    lies within match_m of its last measurement) — to score variants of the test offline."""
+    rows: list[dict[str, Any]] = []
+    for run_dir in run_dirs:
+        run, frames = load_run(run_dir)
+        circles = world_circles(run, Path(run_dir))
+        for f in frames:
+            for tr in f.get("tracks", []):
+                mt = tr.get("mt")
+                if not tr.get("confirmed") or mt is None:
+                    continue
+                vx, vy = mt["vel"]
+                rows.append({"record": Path(run_dir).name, "frame": f["frame"], "t": f["t"], "track": tr["id"],
+                             "truth": _truth_of(tr, circles, f["t"], match_m) or "none",
+                             "robot_dist": mt["robot_dist"], "verdict": tr["moving_test"],
+                             "static_meas": int(mt["static_meas"]), "static_support": int(mt["static_support"]),
+                             "hits": mt["hits"], "speed": math.hypot(vx, vy), "vx": vx, "vy": vy,
+                             "tx": mt["travel"][0], "ty": mt["travel"][1], "life_s": mt["life_s"],
+                             "end_var": mt["end_var"], "age_s": tr.get("age_s", 0.0), "r": tr["r"],
+                             "t1x": mt["travel_1s"][0], "t1y": mt["travel_1s"][1],
+                             "t2x": mt["travel_2s"][0], "t2y": mt["travel_2s"][1]})
+    if not rows:
+        raise FatalError("no confirmed track in these records carries the moving test's inputs (tracks[].mt, "
+                         "recorded since session 47): record with a current `fuzzystereo sim suite --record DIR`")
+    return rows
+
+
 def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, cover_m: float = 0.3) -> dict[str, Any]:
     """Both tables over all records; FatalError naming a record without truth or without verdicts."""
     if not run_dirs:
@@ -64,16 +151,9 @@ def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, co
                 if verdict is None:
                     continue
                 any_verdict = True
-                t_meas = t - tr.get("age_s", 0.0)
-                best = None
-                for o in circles:
-                    ox, oy, _, _ = obstacle_state(o, t_meas)
-                    d = math.hypot(ox - tr["last"][0], oy - tr["last"][1]) - o["radius"]
-                    if best is None or d < best[0]:
-                        best = (d, o)
-                if best is None or best[0] > match_m:
+                kind = _truth_of(tr, circles, t, match_m)
+                if kind is None:
                     continue
-                kind = "mover" if obstacle_moves(best[1]) else "static"
                 per[kind][verdict] += 1
                 if math.hypot(tr["p"][0] - x, tr["p"][1] - y) <= near_m:
                     per[kind + "_near"][verdict] += 1
