@@ -320,8 +320,8 @@ double true_front_m(const sim::World& world, const Pose2D& pose, double t_s, dou
 // point of each detected obstacle (median disparity of its pixels in that column) and the forward
 // distance the column sees free, and (b) point measurements for the tracker, one per compact
 // detection (narrower than [loop] track_max_width_m), centred half its width behind the visible front.
-void measurements_of(const DetectResult& det, const ImageI16& disp, const StereoCalib& calib, const Pose2D& pose,
-                     int max_disparity_px, const LoopParams& lp, robot::CameraScan& scan,
+void measurements_of(const DetectResult& det, const ImageI16& disp, const ImageRgb8& rgb_left, const StereoCalib& calib,
+                     const Pose2D& pose, int max_disparity_px, const LoopParams& lp, robot::CameraScan& scan,
                      std::vector<robot::ObstacleMeasurement>& meas,
                      std::vector<std::pair<std::size_t, std::size_t>>* meas_hits = nullptr) {
   const int w = disp.width, h = disp.height;
@@ -351,14 +351,20 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
     if (valid < h * 2 / 5 || sat > h / 10) scan.free_range_m[static_cast<std::size_t>(x)] = 0.0;
   }
   std::vector<std::int16_t> vals;
+  const bool colour = rgb_left.width == w && rgb_left.height == h;  // empty for grey cameras
   for (const Obstacle& o : det.obstacles) {
     const std::size_t hits_begin = scan.hits.size();
+    robot::ChromaSum chroma;  // the tracker's appearance (robot::ChromaSum)
     // (a) per-column surface points
     for (int x = o.x0; x <= o.x1; ++x) {
       vals.clear();
       long sum_v = 0;
       for (int y = o.y0; y <= o.y1; ++y)
         if (det.obstacle_labels.row(y)[x] == o.id + 1) {
+          if (colour) {
+            const auto& px = rgb_left.at(x, y);
+            chroma.add(px.r, px.g, px.b);
+          }
           const std::int16_t d = disp.row(y)[x];
           if (d > 0) {
             vals.push_back(d);
@@ -384,6 +390,8 @@ void measurements_of(const DetectResult& det, const ImageI16& disp, const Stereo
     robot::ObstacleMeasurement m;
     m.distance_class = static_cast<int>(o.cls);
     m.sigma_m = std::max(lp.meas_sigma_floor_m, depth_sigma(calib, g.depth));
+    m.has_chroma = chroma.valid();
+    m.chroma = chroma.chroma();
     // edge_meas_sigma_scale (session 28): a detection cut by the image's right border, or on the
     // left by the band where the right image holds no partner (x < its disparity), shows only part
     // of the obstacle: its width, and so the centre behind the front, shrink as it leaves the view
@@ -964,7 +972,7 @@ LoopResult RobotLoop::run() {
     // ---- track ----
     s1 = std::chrono::steady_clock::now();
     const Pose2D pose = odom.pose();
-    measurements_of(det, det_disp, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
+    measurements_of(det, det_disp, rgb_left, I.calib, pose, I.cfg.matcher.cost.max_disparity, lp, scan, meas, &meas_hits);
     // An unseen-ground obstacle goes when the camera sees its whole disc free: its centre in view,
     // beyond the camera's near range, and its column's free range past the far edge of the disc; or
     // when the robot is farther from it than the planner looks ([loop] plan_radius_m: the list stays
@@ -1572,6 +1580,9 @@ LoopResult RobotLoop::run() {
                      {"mvar", tr.last_meas_var},
                      {"age_s", robot::ns_to_s(t_frame - t0 - tr.last_meas_ns)},
                      {"support", support_cells(tr)},
+                     {"chroma", tr.has_chroma ? json{std::round(tr.chroma.x * 1e4) / 1e4, std::round(tr.chroma.y * 1e4) / 1e4}
+                                              : json(nullptr)},
+                     {"chroma_d", std::round(tr.last_chroma_d * 1e4) / 1e4},
                      {"mover", tr.mover}});
       for (const MovingVerdict& mv : moving_verdict)
         if (mv.id == tr.id) {

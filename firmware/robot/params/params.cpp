@@ -60,6 +60,9 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.static_gate_m = v.num("tracker.static_gate_m");
   p.reacquire_speed_mps = v.num("tracker.reacquire_speed_mps");
   p.reacquire_min_coast_s = v.num("tracker.reacquire_min_coast_s");
+  p.appearance_gate = v.num("tracker.appearance_gate");
+  p.appearance_weight_m = v.num("tracker.appearance_weight_m");
+  p.appearance_fade = v.num("tracker.appearance_fade");
   return p;
 }
 

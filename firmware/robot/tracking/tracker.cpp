@@ -86,7 +86,15 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       // 105-110 it gave 14 contacts against 11 (docs/robot.md "Session 35").
       if (p_.static_gate_m > 0 && (tr.static_obstacle || m.static_cells) && norm(m.p - tr.last_meas_p) > p_.static_gate_m)
         continue;
-      cands.push_back({d, ti, mi});
+      // Appearance gate (session 47): neighbouring obstacles of another colour do not swap identities. A
+      // track that took a neighbour's measurement (10 % of confirmed updates, docs/robot.md "Session 26";
+      // a static post's track taking a passing mover's keeps its static history, and the mover's track
+      // ends) reads a velocity neither has.
+      const double cd = tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : 0.0;
+      if (p_.appearance_gate > 0 && cd > p_.appearance_gate) continue;
+      // ... and as a cost: where two tracks compete for a measurement (or two measurements for a track), the
+      // greedy pairing takes the one of the nearer colour first (appearance_weight_m per unit of distance).
+      cands.push_back({d + p_.appearance_weight_m * cd, ti, mi});
     }
   }
   std::vector<int> meas_of(tracks_.size(), -1);
@@ -124,6 +132,8 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
         const ObstacleMeasurement& m = meas[mi];
         if (used[mi] || m.static_cells) continue;
+        if (p_.appearance_gate > 0 && tr.has_chroma && m.has_chroma && norm(m.chroma - tr.chroma) > p_.appearance_gate)
+          continue;
         const double sigma = meas_sigma(m);
         const double reach = p_.reacquire_speed_mps * dtm + 3.0 * std::sqrt(sigma * sigma + tr.last_meas_var) +
                              std::abs(m.radius_m - tr.last_meas_radius_m);
@@ -205,6 +215,11 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
+    tr.last_chroma_d = tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : -1.0;
+    if (m.has_chroma) {
+      tr.chroma = tr.has_chroma ? p_.appearance_fade * tr.chroma + (1.0 - p_.appearance_fade) * m.chroma : m.chroma;
+      tr.has_chroma = true;
+    }
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
   }
@@ -239,6 +254,8 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = sigma * sigma;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
+    tr.has_chroma = m.has_chroma;
+    tr.chroma = m.chroma;
     tr.updated_this_frame = true;
     assoc.emplace_back(tr.id, mi);
     tracks_.push_back(tr);

@@ -638,6 +638,9 @@ TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   EXPECT_DOUBLE_EQ(t.static_gate_m, d.static_gate_m);
   EXPECT_DOUBLE_EQ(t.reacquire_speed_mps, d.reacquire_speed_mps);
   EXPECT_DOUBLE_EQ(t.reacquire_min_coast_s, d.reacquire_min_coast_s);
+  EXPECT_DOUBLE_EQ(t.appearance_gate, d.appearance_gate);
+  EXPECT_DOUBLE_EQ(t.appearance_weight_m, d.appearance_weight_m);
+  EXPECT_DOUBLE_EQ(t.appearance_fade, d.appearance_fade);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
   EXPECT_EQ(t.max_misses, d.max_misses);
   EXPECT_DOUBLE_EQ(t.miss_sigmas, d.miss_sigmas);
@@ -703,6 +706,77 @@ TEST(Tracker, ConfigOverridesAndErrors) {
   EXPECT_EQ(rp.ground_ahead_min_pct, 40.0);
   EXPECT_EQ(rp.ground_ahead_band_m, 1.5);
   EXPECT_EQ(rp.ground_ahead_release_pct, 80.0);
+}
+
+
+// [tracker] appearance_gate (session 47): a red obstacle's measurement nearer a blue obstacle's track than
+// its own goes to its own track with the gate on, to the blue one (an identity switch) without it; a
+// measurement without colour (grey camera) is associated as before; the track's chromaticity is a fading
+// mean of its measurements'.
+TEST(Tracker, AppearanceGateKeepsNeighboursOfDifferentColoursApart) {
+  const Vec2 red{0.6, 0.2}, blue{0.2, 0.2};
+  const auto meas = [](Vec2 p, Vec2 chroma, bool has = true) {
+    ObstacleMeasurement m{p, 0.2, 0, 0.05};
+    m.has_chroma = has;
+    m.chroma = chroma;
+    return m;
+  };
+  const auto vis = [](Vec2) { return true; };
+  const auto run = [&](double gate, bool colour, double weight = 0.0) {
+    TrackerParams tp;
+    tp.appearance_gate = gate;
+    tp.appearance_weight_m = weight;
+    MultiTracker mt(tp);
+    for (int f = 0; f < 5; ++f)
+      mt.step(s_to_ns(0.1 * f), {meas({2.0, 0.0}, red), meas({2.0, 0.6}, blue)}, vis);
+    // the red obstacle steps 0.5 m towards the blue one (which is not seen this frame)
+    mt.step(s_to_ns(0.5), {meas({2.0, 0.5}, red, colour)}, vis);
+    int red_id = -1, taker = -1;
+    for (const Track& tr : mt.tracks()) {
+      if (tr.first_meas_p.y == 0.0) red_id = tr.id;
+      if (tr.updated_this_frame) taker = tr.id;
+    }
+    return std::pair{red_id, taker};
+  };
+  const auto [red_off, taker_off] = run(0.0, true);
+  EXPECT_NE(taker_off, red_off) << "without the gate the nearer blue track takes the red measurement";
+  const auto [red_on, taker_on] = run(0.15, true);
+  EXPECT_EQ(taker_on, red_on) << "with the gate the red track keeps its obstacle";
+  const auto [red_grey, taker_grey] = run(0.15, false);
+  const auto [red_w, taker_w] = run(0.0, true, 5.0);
+  EXPECT_EQ(taker_w, red_w) << "as a cost (0.1 m + 5 x 0.4 against 0.5 m) the red track takes it first";
+  EXPECT_NE(taker_grey, red_grey) << "no colour: the gate does not apply";
+
+  // fading mean: 0.7 x previous + 0.3 x measurement; the distance before the update is logged
+  TrackerParams tp;
+  MultiTracker mt(tp);
+  mt.step(0, {meas({2.0, 0.0}, red)}, vis);
+  mt.step(s_to_ns(0.1), {meas({2.0, 0.0}, blue)}, vis);
+  ASSERT_EQ(mt.tracks().size(), 1u);
+  EXPECT_NEAR(mt.tracks()[0].chroma.x, 0.7 * 0.6 + 0.3 * 0.2, 1e-12);
+  EXPECT_NEAR(mt.tracks()[0].last_chroma_d, 0.4, 1e-12);
+  mt.step(s_to_ns(0.2), {meas({2.0, 0.0}, blue, false)}, vis);
+  EXPECT_NEAR(mt.tracks()[0].chroma.x, 0.48, 1e-12) << "a measurement without colour leaves it";
+  EXPECT_EQ(mt.tracks()[0].last_chroma_d, -1.0);
+}
+
+TEST(Tracker, ChromaSumIsBrightnessInvariantAndRefusesDarkOrSmallSets) {
+  ChromaSum a, b;
+  for (int i = 0; i < 30; ++i) {
+    a.add(200, 100, 50);
+    b.add(100, 50, 25);  // the same surface in the shade
+  }
+  EXPECT_TRUE(a.valid());
+  EXPECT_TRUE(b.valid());
+  EXPECT_NEAR(a.chroma().x, 200.0 / 350.0, 1e-12);
+  EXPECT_NEAR(a.chroma().y, 100.0 / 350.0, 1e-12);
+  EXPECT_NEAR(norm(a.chroma() - b.chroma()), 0.0, 1e-12);
+  ChromaSum dark, few;
+  for (int i = 0; i < 30; ++i) dark.add(20, 20, 15);
+  for (int i = 0; i < 10; ++i) few.add(200, 100, 50);
+  EXPECT_FALSE(dark.valid()) << "mean r + g + b 55 < 60";
+  EXPECT_FALSE(few.valid()) << "10 < 20 pixels";
+  EXPECT_EQ(ChromaSum{}.chroma().x, 1.0 / 3.0);
 }
 
 }  // namespace

@@ -77,6 +77,12 @@ struct TrackerParams {
                                     // track's last measurement (+ 3 stds of both, + the change of half-width) of
                                     // that measurement [m/s]; 0 = off
   double reacquire_min_coast_s = 0.4;  // ... only tracks unmeasured for at least this long [s]
+  double appearance_gate = 0.0;     // identity by colour (docs/robot.md "Session 47"): a measurement whose rg
+                                    // chromaticity lies further than this from the track's (fading mean) is not
+                                    // its obstacle; 0 = off. Needs a colour camera; ignored where either has none
+  double appearance_weight_m = 0.0; // association cost of colour: the greedy pairing orders candidates by their
+                                    // distance + this x their chromaticity distance [m]; 0 = distance alone
+  double appearance_fade = 0.7;     // weight of the track's previous chromaticity in its fading mean
 };
 
 // [planner] — global grid A* + sampled-arc local planner.

@@ -22,6 +22,25 @@ struct ObstacleMeasurement {
   int distance_class = 0;  // detector's near/mid/far class (passed through)
   double sigma_m = 0;      // position std of this measurement [m]; 0 = TrackerParams::pos_sigma_m
   bool static_cells = false;  // its surface lies on old, stable map cells (robot::measurement_is_static)
+  // Appearance (session 47): the mean rg chromaticity r / (r + g + b), g / (r + g + b) of the detection's
+  // pixels in the left colour image; has_chroma false for grey cameras or too dark / too few pixels.
+  bool has_chroma = false;
+  Vec2 chroma{1.0 / 3.0, 1.0 / 3.0};
+};
+
+// Mean rg chromaticity of a set of RGB pixels: (sum r, sum g) / sum (r + g + b). has_chroma needs at least
+// min_pixels pixels of mean r + g + b >= min_sum (dark pixels carry no colour). Brightness-invariant: the
+// same surface under the sides' different shading keeps its chromaticity.
+struct ChromaSum {
+  std::uint64_t r = 0, g = 0, b = 0, n = 0;
+  void add(std::uint8_t R, std::uint8_t G, std::uint8_t B) { r += R; g += G; b += B; ++n; }
+  bool valid(std::uint64_t min_pixels = 20, std::uint64_t min_sum = 60) const {
+    return n >= min_pixels && r + g + b >= min_sum * n;
+  }
+  Vec2 chroma() const {
+    const double s = static_cast<double>(r + g + b);
+    return s > 0 ? Vec2{static_cast<double>(r) / s, static_cast<double>(g) / s} : Vec2{1.0 / 3.0, 1.0 / 3.0};
+  }
 };
 
 // Measurement model of a round obstacle seen by the camera (at the origin of the frame): the two
@@ -62,6 +81,11 @@ struct Track {
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
+  // Appearance (TrackerParams::appearance_gate): a fading mean of its measurements' chromaticity, and the
+  // distance of the last measurement's from that mean before the update (-1: one of them had none).
+  bool has_chroma = false;
+  Vec2 chroma{1.0 / 3.0, 1.0 / 3.0};
+  double last_chroma_d = -1.0;
   bool updated_this_frame = false;
   double nis_mean = 2.0;        // faded mean of the position NIS (maneuver switch; 2 = the chi-square mean)
   bool maneuvering = false;     // Q level: accel_sigma_mps2 (true) or accel_sigma_steady_mps2
