@@ -1121,7 +1121,7 @@ LoopResult RobotLoop::run() {
         mt_in.static_measurement = tr.last_meas_static;
         mt_in.static_support = supported;
         mt_in.hits = tr.hits;
-        mt_in.vel = o.vel;
+        mt_in.vel = tr.meas_vel;  // == o.vel unless [tracker] coast_decay_s
         mt_in.age_s = age_s;
         mt_in.travel = tr.last_meas_p - tr.first_meas_p;
         mt_in.life_s = robot::ns_to_s(tr.last_meas_ns - tr.first_meas_ns);
@@ -1150,7 +1150,7 @@ LoopResult RobotLoop::run() {
           const double dist = robot::norm(tr.pos() - pose.pos());
           // [loop] near_track_overlap (session 41) keeps such an estimate after all ("keep"), or only for
           // a track without static support ("keep_unsupported"): robot::near_track_circle.
-          if (robot::near_track_circle(near_rule, age_s, dist, robot::norm(o.vel), tr.radius_m, I.rp.radius_m, supported)) {
+          if (robot::near_track_circle(near_rule, age_s, dist, robot::norm(tr.meas_vel), tr.radius_m, I.rp.radius_m, supported)) {
             // near_track_moving (session 28): a track without static support may also (or instead)
             // carry its filtered velocity, so the planner keeps out of where it goes next, not only
             // of where it is (the tracks that follow a turned mover but fail the direction test).
@@ -1159,7 +1159,7 @@ LoopResult RobotLoop::run() {
               // "grow": the circle grows at the track's speed over the planner's horizon (at most
               // near_track_reach_cap_m): where it can be whatever its heading.
               if (lp.near_track_moving == NearTrack::kGrow && !supported) {
-                obstacles.back().grow = robot::norm(o.vel);
+                obstacles.back().grow = robot::norm(tr.meas_vel);
                 obstacles.back().grow_max = lp.near_track_reach_cap_m;
               }
               kinds.push_back('n');
@@ -1176,7 +1176,7 @@ LoopResult RobotLoop::run() {
               kinds.resize(obstacles.size(), 'n');
             }
           } else if (lp.near_track_reach_cap_m > 0 && age_s > lp.near_track_max_age_s && age_s <= lp.moving_max_age_s &&
-                   robot::norm(o.vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
+                   robot::norm(tr.meas_vel) >= lp.moving_speed_mps && !visible(tr.last_meas_p)) {
             // Older and out of view: where it could be now — its last measured position, grown by
             // speed x age (at most near_track_reach_cap_m), when that does not already hold the robot.
             // reach_travel_rate: grown at most at the measured travel rate (a static obstacle's
@@ -1186,7 +1186,7 @@ LoopResult RobotLoop::run() {
             CircleObstacle reach;
             // static_track_no_growth: a track with static support is a static obstacle, its set does
             // not grow with its (noise) velocity: the obstacle where it was last measured.
-            const double speed = supported && lp.static_track_no_growth ? 0.0 : reach_speed_of(tr, robot::norm(o.vel));
+            const double speed = supported && lp.static_track_no_growth ? 0.0 : reach_speed_of(tr, robot::norm(tr.meas_vel));
             if (robot::reachable_set(tr.last_meas_p, tr.radius_m, speed, age_s, lp.near_track_reach_cap_m, pose.pos(),
                                      I.rp.radius_m, lp.near_track_m, reach, lp.reach_holding_robot && !supported)) {
               reach.transient = true;

@@ -1,4 +1,5 @@
 // Constant-velocity Kalman filter, paper eq. (26)-(32). Eigen fixed-size 4x4 matrices.
+#include <cmath>
 #include "fuzzystereo/robot/kalman.hpp"
 
 #include <Eigen/Dense>
@@ -34,6 +35,20 @@ void CvKalman::predict(double dt, double accel_sigma) {
   const Mat4 f = F(dt);
   x_ = f * x_;                                // eq. (26)/(29), B u = 0
   P_ = f * P_ * f.transpose() + Q(dt, accel_sigma);  // eq. (26)
+}
+
+Mat4 CvKalman::F_damped(double dt, double tau) {
+  const double a = std::exp(-dt / tau);
+  Mat4 f = Mat4::Identity();
+  f(0, 2) = f(1, 3) = -tau * std::expm1(-dt / tau);  // tau (1 - a), exact for tau >> dt too
+  f(2, 2) = f(3, 3) = a;
+  return f;
+}
+
+void CvKalman::predict_damped(double dt, double tau, double accel_sigma) {
+  const Mat4 f = F_damped(dt, tau);
+  x_ = f * x_;
+  P_ = f * P_ * f.transpose() + Q(dt, accel_sigma);
 }
 
 void CvKalman::add_process_noise(double dt, double accel_sigma) {

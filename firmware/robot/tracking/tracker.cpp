@@ -45,7 +45,14 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
   double dt_pred = 0.0;
   if (have_t_ && t_ns > last_t_ns_) {
     dt_pred = ns_to_s(t_ns - last_t_ns_);
-    for (Track& tr : tracks_) tr.kf.predict(dt_pred, q_level(tr));
+    for (Track& tr : tracks_) {
+      // coast_decay_s (session 47): a track not measured at the previous step is coasting; the velocity it
+      // had when it left the view was worse than none for predicting where a mover went (docs/robot.md).
+      if (p_.coast_decay_s > 0 && tr.last_meas_ns < last_t_ns_)
+        tr.kf.predict_damped(dt_pred, p_.coast_decay_s, q_level(tr));
+      else
+        tr.kf.predict(dt_pred, q_level(tr));
+    }
   }
   if (!have_t_ || t_ns > last_t_ns_) last_t_ns_ = t_ns;
   have_t_ = true;
@@ -215,6 +222,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_var = var;
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
+    tr.meas_vel = tr.vel();
     tr.last_chroma_d = tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : -1.0;
     if (m.has_chroma) {
       tr.chroma = tr.has_chroma ? p_.appearance_fade * tr.chroma + (1.0 - p_.appearance_fade) * m.chroma : m.chroma;

@@ -639,6 +639,7 @@ TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   EXPECT_DOUBLE_EQ(t.reacquire_speed_mps, d.reacquire_speed_mps);
   EXPECT_DOUBLE_EQ(t.reacquire_min_coast_s, d.reacquire_min_coast_s);
   EXPECT_DOUBLE_EQ(t.appearance_gate, d.appearance_gate);
+  EXPECT_DOUBLE_EQ(t.coast_decay_s, d.coast_decay_s);
   EXPECT_DOUBLE_EQ(t.appearance_weight_m, d.appearance_weight_m);
   EXPECT_DOUBLE_EQ(t.appearance_fade, d.appearance_fade);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
@@ -777,6 +778,63 @@ TEST(Tracker, ChromaSumIsBrightnessInvariantAndRefusesDarkOrSmallSets) {
   EXPECT_FALSE(dark.valid()) << "mean r + g + b 55 < 60";
   EXPECT_FALSE(few.valid()) << "10 < 20 pixels";
   EXPECT_EQ(ChromaSum{}.chroma().x, 1.0 / 3.0);
+}
+
+}  // namespace
+}  // namespace fs::robot
+
+namespace fs::robot {
+namespace {
+
+// CvKalman::predict_damped ([tracker] coast_decay_s, session 47): the velocity decays as e^{-dt/tau}, the position
+// moves by v tau (1 - e^{-dt/tau}) (the integral), two half steps equal one whole; tau -> infinity is eq. (28)'s F.
+TEST(Kalman, DampedPredictionDecaysTheVelocityAndIntegratesIt) {
+  CvKalman a;
+  a.init(1.0, 2.0, 0.01, 0.04);
+  Vec4 z(1.0, 2.0, 0.4, -0.2);
+  Mat4 R = Mat4::Identity() * 1e-9;
+  a.update(z, R);  // velocity (0.4, -0.2), nearly certain
+  CvKalman b = a, c = a;
+  a.predict_damped(1.0, 0.5, 0.1);
+  const double k = 0.5 * (1.0 - std::exp(-2.0));
+  EXPECT_NEAR(a.px(), 1.0 + 0.4 * k, 1e-6);
+  EXPECT_NEAR(a.py(), 2.0 - 0.2 * k, 1e-6);
+  EXPECT_NEAR(a.vx(), 0.4 * std::exp(-2.0), 1e-6);
+  b.predict_damped(0.5, 0.5, 0.0);
+  b.predict_damped(0.5, 0.5, 0.0);
+  EXPECT_NEAR(b.px(), a.px(), 1e-9);
+  EXPECT_NEAR(b.vy(), a.vy(), 1e-9);
+  const Mat4 f = CvKalman::F_damped(0.1, 1e9), g = CvKalman::F(0.1);
+  EXPECT_LT((f - g).cwiseAbs().maxCoeff(), 1e-9);
+  c.predict(1.0, 0.1);
+  EXPECT_NEAR(c.px(), 1.4, 1e-6) << "the paper's F, for comparison";
+}
+
+// [tracker] coast_decay_s: a track that missed the previous frame predicts with the decaying velocity; one measured
+// every frame is the paper's constant-velocity filter exactly; Track::meas_vel keeps the last update's velocity.
+TEST(Tracker, CoastDecayOnlyForTracksWithoutAMeasurementAtThePreviousFrame) {
+  const auto vis_none = [](Vec2) { return false; };  // out of view: no misses counted
+  const auto run = [&](double tau, int coast_frames) {
+    TrackerParams tp;
+    tp.coast_decay_s = tau;
+    MultiTracker mt(tp);
+    int f = 0;
+    for (; f < 12; ++f) mt.step(s_to_ns(0.1 * f), {{{2.0 + 0.03 * f, 0.0}, 0.2, 0, 0.02}}, vis_none);
+    for (int k = 0; k < coast_frames; ++k, ++f) mt.step(s_to_ns(0.1 * f), {}, vis_none);
+    return mt.tracks().at(0);
+  };
+  const Track cv = run(0.0, 0), damped = run(0.5, 0);
+  EXPECT_EQ(cv.pos().x, damped.pos().x) << "measured every frame: identical";
+  EXPECT_EQ(cv.vel().x, damped.vel().x);
+  const Track cv20 = run(0.0, 20), d20 = run(0.5, 20);
+  EXPECT_NEAR(cv20.vel().x, cv.vel().x, 1e-12) << "constant velocity while coasting";
+  EXPECT_LT(std::fabs(d20.vel().x), 0.05 * std::fabs(cv.vel().x)) << "decayed over 1.9 s at tau 0.5 s";
+  EXPECT_NEAR(d20.meas_vel.x, cv.vel().x, 1e-12) << "the last update's velocity is kept for the moving test";
+  // position: one constant-velocity frame, then at most v tau beyond it
+  const double v = cv.vel().x;
+  EXPECT_GT(d20.pos().x, cv.pos().x + 0.1 * v);
+  EXPECT_LT(d20.pos().x, cv.pos().x + 0.1 * v + 0.5 * v + 1e-9);
+  EXPECT_NEAR(cv20.pos().x, cv.pos().x + 2.0 * v, 1e-9);
 }
 
 }  // namespace

@@ -24,6 +24,11 @@ class CvKalman {
   // eq. (26) with F of eq. (28) and the white-noise-acceleration Q (accel_sigma [m/s^2]):
   //   Q = sa^2 [[dt^4/4 I, dt^3/2 I], [dt^3/2 I, dt^2 I]].
   void predict(double dt, double accel_sigma);
+  // Outside the paper (a track without measurements, [tracker] coast_decay_s, docs/robot.md "Session 47"):
+  // eq. (26) with the velocity decaying at time constant tau [s] (an integrated Ornstein-Uhlenbeck velocity):
+  //   F = [[I, tau (1 - e^{-dt/tau}) I], [0, e^{-dt/tau} I]], the same Q.
+  void predict_damped(double dt, double tau, double accel_sigma);
+  static Mat4 F_damped(double dt, double tau);
 
   // eq. (31)-(32) with H = I and a full 4-D measurement z = [p; v] with covariance R.
   void update(const Vec4& z, const Mat4& R);

@@ -80,6 +80,9 @@ struct TrackerParams {
   double appearance_gate = 0.0;     // identity by colour (docs/robot.md "Session 47"): a measurement whose rg
                                     // chromaticity lies further than this from the track's (fading mean) is not
                                     // its obstacle; 0 = off. Needs a colour camera; ignored where either has none
+  double coast_decay_s = 0.0;       // a track that missed its last frame predicts with its velocity decaying at
+                                    // this time constant (CvKalman::predict_damped; docs/robot.md "Session 47")
+                                    // [s]; 0 = constant velocity throughout (the paper's F)
   double appearance_weight_m = 0.0; // association cost of colour: the greedy pairing orders candidates by their
                                     // distance + this x their chromaticity distance [m]; 0 = distance alone
   double appearance_fade = 0.7;     // weight of the track's previous chromaticity in its fading mean

@@ -81,6 +81,8 @@ struct Track {
   double last_meas_var = 0;     // its position variance [m^2]
   double last_meas_radius_m = 0;  // its half-width [m] (speed gate)
   bool last_meas_static = false;  // its ObstacleMeasurement::static_cells
+  Vec2 meas_vel;                // the filtered velocity right after the last update (with coast_decay_s the
+                                // state's velocity decays while coasting; the loop's moving test judges this one)
   // Appearance (TrackerParams::appearance_gate): a fading mean of its measurements' chromaticity, and the
   // distance of the last measurement's from that mean before the update (-1: one of them had none).
   bool has_chroma = false;
