@@ -142,3 +142,23 @@ def test_bad_settings_and_old_records_are_named(tmp_path: Path) -> None:
     del frames[1]["tracks"][0]["mvar"]
     with pytest.raises(FatalError, match="frame 1, track 7: no 'mvar'"):
         replay_frames(frames, KalmanParams())
+
+
+def test_the_reference_reproduces_the_coast_decay(firmware_bin, tmp_path: Path) -> None:
+    # [tracker] coast_decay_s (session 47): tracks that missed the previous frame predict with a decaying velocity,
+    # on both sides; the record's own config carries the setting.
+    cfg = tmp_path / "decay.toml"
+    cfg.write_text("[tracker]\ncoast_decay_s = 0.5\n")
+    rec = tmp_path / "rec"
+    p = subprocess.run([str(firmware_bin), "sim", "suite", "--count", "100", "--blocked", "0", "--seed", "901", "--only",
+                        "0", "--jobs", "1", "--config", str(cfg), "--record", str(rec), "--snapshot-every", "0"],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    run = rec / "suite-901-0"
+    r = track_replay([run])
+    assert r["agreement"]["updates"] > 100
+    assert r["agreement"]["max_pos_diff_m"] < 1e-4, r["agreement"]
+    assert r["agreement"]["max_vel_diff_mps"] < 1e-4, r["agreement"]
+    # without the decay the replay's coasting tracks drift off the firmware's
+    off = track_replay([run], {"tracker.coast_decay_s": 0.0})
+    assert off["agreement"]["max_pos_diff_m"] > 1e-2

@@ -41,16 +41,30 @@ class KalmanParams:
     maneuver_fade: float = 0.7
     init_vel_sigma_mps: float = 5.0
     velocity_measurement: bool = True
+    coast_decay_s: float = 0.0
 
     @classmethod
     def from_values(cls, tracker: dict[str, Any]) -> "KalmanParams":
-        return cls(**{k: type(getattr(cls, k))(tracker[k]) for k in cls.__dataclass_fields__})
+        """The fields from a ``[tracker]`` table; coast_decay_s (session 47) is 0 when a record's older config
+        lacks it."""
+        optional = {"coast_decay_s"}
+        return cls(**{k: type(getattr(cls, k))(tracker[k]) for k in cls.__dataclass_fields__
+                      if k in tracker or k not in optional})
 
 
 def transition(dt: float) -> np.ndarray:
     """eq. (28): F = [[I, dt I], [0, I]]."""
     f = np.eye(4)
     f[0, 2] = f[1, 3] = dt
+    return f
+
+
+def transition_damped(dt: float, tau: float) -> np.ndarray:
+    """[tracker] coast_decay_s (outside the paper; CvKalman::F_damped): the velocity decays as e^{-dt/tau}, the
+    position moves by its integral."""
+    f = np.eye(4)
+    f[0, 2] = f[1, 3] = -tau * math.expm1(-dt / tau)
+    f[2, 2] = f[3, 3] = math.exp(-dt / tau)
     return f
 
 
@@ -89,9 +103,10 @@ class TrackFilter:
         switching = kp.accel_sigma_steady_mps2 > 0.0
         return kp.accel_sigma_steady_mps2 if switching and not self.maneuvering else kp.accel_sigma_mps2
 
-    def predict(self, dt: float, kp: KalmanParams) -> None:
-        """eq. (26)/(29), B u = 0."""
-        f = transition(dt)
+    def predict(self, dt: float, kp: KalmanParams, coasting: bool = False) -> None:
+        """eq. (26)/(29), B u = 0; a coasting track (no measurement at the previous frame) with coast_decay_s > 0
+        predicts with the damped transition."""
+        f = transition_damped(dt, kp.coast_decay_s) if coasting and kp.coast_decay_s > 0 else transition(dt)
         self.x = f @ self.x
         self.P = f @ self.P @ f.T + process_noise(dt, self.q_level(kp))
 
@@ -171,7 +186,7 @@ def replay_frames(frames: list[dict[str, Any]], kp: KalmanParams, source: str = 
         dt_pred = t - t_prev if t_prev is not None and t > t_prev else 0.0
         if dt_pred > 0.0:
             for tf in filters.values():
-                tf.predict(dt_pred, kp)
+                tf.predict(dt_pred, kp, coasting=t_prev is not None and tf.last_t < t_prev - 1e-9)
         if t_prev is None or dt_pred > 0.0:
             t_prev = t
         seen: set[int] = set()
