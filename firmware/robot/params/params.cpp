@@ -62,6 +62,7 @@ TrackerParams tracker_params_from(const ConfigValues& v) {
   p.reacquire_min_coast_s = v.num("tracker.reacquire_min_coast_s");
   p.appearance_gate = v.num("tracker.appearance_gate");
   p.coast_decay_s = v.num("tracker.coast_decay_s");
+  p.coast_decay_unseen_only = v.flag("tracker.coast_decay_unseen_only");
   p.appearance_weight_m = v.num("tracker.appearance_weight_m");
   p.appearance_fade = v.num("tracker.appearance_fade");
   return p;

@@ -48,7 +48,9 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     for (Track& tr : tracks_) {
       // coast_decay_s (session 47): a track not measured at the previous step is coasting; the velocity it
       // had when it left the view was worse than none for predicting where a mover went (docs/robot.md).
-      if (p_.coast_decay_s > 0 && tr.last_meas_ns < last_t_ns_)
+      // coast_decay_unseen_only: only while its estimate is outside the sensor's view (a mover that left it).
+      if (p_.coast_decay_s > 0 && tr.last_meas_ns < last_t_ns_ &&
+          (!p_.coast_decay_unseen_only || (visible && !visible(tr.pos()))))
         tr.kf.predict_damped(dt_pred, p_.coast_decay_s, q_level(tr));
       else
         tr.kf.predict(dt_pred, q_level(tr));

@@ -79,6 +79,10 @@ def track_replay(run_dirs: list[Path], overrides: dict[str, Any] | None = None, 
         tracker = dict(cfg["tracker"])
         tracker.update({k.split(".", 1)[1]: v for k, v in overrides.items() if k.startswith("tracker.")})
         kp = KalmanParams.from_values(tracker)
+        if kp.coast_decay_s > 0 and tracker.get("coast_decay_unseen_only", False):
+            raise FatalError(f"{run_dir}: [tracker] coast_decay_unseen_only decays a track's velocity only outside the "
+                             "camera's view, which the record does not hold; the replay cannot follow it "
+                             "(replay with --set tracker.coast_decay_s=0, or record without it)")
         floor, own = overrides.get(FLOOR_KEY, 0.0), float(cfg["loop"]["meas_sigma_floor_m"])
         if floor and floor < own:
             raise FatalError(f"--set {FLOOR_KEY}={floor}: below the record's own floor {own} m ({run_dir}/config.toml); "

@@ -640,6 +640,7 @@ TEST(Tracker, ParamsFromConfigMatchStructDefaults) {
   EXPECT_DOUBLE_EQ(t.reacquire_min_coast_s, d.reacquire_min_coast_s);
   EXPECT_DOUBLE_EQ(t.appearance_gate, d.appearance_gate);
   EXPECT_DOUBLE_EQ(t.coast_decay_s, d.coast_decay_s);
+  EXPECT_EQ(t.coast_decay_unseen_only, d.coast_decay_unseen_only);
   EXPECT_DOUBLE_EQ(t.appearance_weight_m, d.appearance_weight_m);
   EXPECT_DOUBLE_EQ(t.appearance_fade, d.appearance_fade);
   EXPECT_EQ(t.confirm_hits, d.confirm_hits);
@@ -835,6 +836,20 @@ TEST(Tracker, CoastDecayOnlyForTracksWithoutAMeasurementAtThePreviousFrame) {
   EXPECT_GT(d20.pos().x, cv.pos().x + 0.1 * v);
   EXPECT_LT(d20.pos().x, cv.pos().x + 0.1 * v + 0.5 * v + 1e-9);
   EXPECT_NEAR(cv20.pos().x, cv.pos().x + 2.0 * v, 1e-9);
+  // coast_decay_unseen_only: a track missed in view keeps its velocity; out of view it decays
+  const auto run_vis = [&](bool in_view) {
+    TrackerParams tp;
+    tp.coast_decay_s = 0.5;
+    tp.coast_decay_unseen_only = true;
+    tp.max_misses = 100;
+    MultiTracker mt(tp);
+    int f = 0;
+    for (; f < 12; ++f) mt.step(s_to_ns(0.1 * f), {{{2.0 + 0.03 * f, 0.0}, 0.2, 0, 0.02}}, vis_none);
+    for (int k = 0; k < 20; ++k, ++f) mt.step(s_to_ns(0.1 * f), {}, [&](Vec2) { return in_view; });
+    return mt.tracks().at(0);
+  };
+  EXPECT_NEAR(run_vis(true).vel().x, cv.vel().x, 1e-12) << "missed in view: constant velocity";
+  EXPECT_NEAR(run_vis(false).vel().x, d20.vel().x, 1e-12) << "out of view: as coast_decay_s alone";
 }
 
 }  // namespace

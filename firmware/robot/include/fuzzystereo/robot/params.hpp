@@ -83,6 +83,7 @@ struct TrackerParams {
   double coast_decay_s = 0.0;       // a track that missed its last frame predicts with its velocity decaying at
                                     // this time constant (CvKalman::predict_damped; docs/robot.md "Session 47")
                                     // [s]; 0 = constant velocity throughout (the paper's F)
+  bool coast_decay_unseen_only = false;  // ... only while the track's estimate is outside the view
   double appearance_weight_m = 0.0; // association cost of colour: the greedy pairing orders candidates by their
                                     // distance + this x their chromaticity distance [m]; 0 = distance alone
   double appearance_fade = 0.7;     // weight of the track's previous chromaticity in its fading mean
