@@ -162,3 +162,10 @@ def test_the_reference_reproduces_the_coast_decay(firmware_bin, tmp_path: Path) 
     # without the decay the replay's coasting tracks drift off the firmware's
     off = track_replay([run], {"tracker.coast_decay_s": 0.0})
     assert off["agreement"]["max_pos_diff_m"] > 1e-2
+    # coast_decay_unseen_only needs the camera's view, which the record does not hold: refused by name
+    conf = run / "config.toml"
+    text = conf.read_text()
+    assert "coast_decay_unseen_only = false" in text
+    conf.write_text(text.replace("coast_decay_unseen_only = false", "coast_decay_unseen_only = true"))
+    with pytest.raises(FatalError, match="coast_decay_unseen_only"):
+        track_replay([run])
