@@ -91,10 +91,9 @@ def test_cli_on_a_firmware_record(firmware_bin, tmp_path):
         rows = list(csv.DictReader(fh))
     assert len(rows) >= r["verdicts"]["mover"]["n"] + r["verdicts"]["static"]["n"]
     assert {row["truth"] for row in rows} >= {"mover", "static"}
-    for row in rows:
-        x = {k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()}
-        assert moving_test(x) == row["verdict"], row
+    typed = [{k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()} for row in rows]
+    for x in typed:
+        assert moving_test(x) == x["verdict"], x
     # a variant moves verdicts: without a hit minimum no row is "few hits"
-    assert any(row["verdict"] == "few hits" for row in rows)
-    assert not any(moving_test({k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()},
-                               min_hits=0) == "few hits" for row in rows)
+    assert any(x["verdict"] == "few hits" for x in typed)
+    assert not any(moving_test(x, min_hits=0) == "few hits" for x in typed)

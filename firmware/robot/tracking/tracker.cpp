@@ -99,7 +99,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       // track that took a neighbour's measurement (10 % of confirmed updates, docs/robot.md "Session 26";
       // a static post's track taking a passing mover's keeps its static history, and the mover's track
       // ends) reads a velocity neither has.
-      const double cd = tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : 0.0;
+      const double cd = std::max(0.0, chroma_distance(tr, m));  // no colour: no gate, no cost
       if (p_.appearance_gate > 0 && cd > p_.appearance_gate) continue;
       // ... and as a cost: where two tracks compete for a measurement (or two measurements for a track), the
       // greedy pairing takes the one of the nearer colour first (appearance_weight_m per unit of distance).
@@ -141,8 +141,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
       for (int mi = 0; mi < static_cast<int>(meas.size()); ++mi) {
         const ObstacleMeasurement& m = meas[mi];
         if (used[mi] || m.static_cells) continue;
-        if (p_.appearance_gate > 0 && tr.has_chroma && m.has_chroma && norm(m.chroma - tr.chroma) > p_.appearance_gate)
-          continue;
+        if (p_.appearance_gate > 0 && chroma_distance(tr, m) > p_.appearance_gate) continue;
         const double sigma = meas_sigma(m);
         const double reach = p_.reacquire_speed_mps * dtm + 3.0 * std::sqrt(sigma * sigma + tr.last_meas_var) +
                              std::abs(m.radius_m - tr.last_meas_radius_m);
@@ -225,7 +224,7 @@ std::vector<std::pair<int, int>> MultiTracker::step(std::int64_t t_ns, const std
     tr.last_meas_radius_m = m.radius_m;
     tr.last_meas_static = m.static_cells;
     tr.meas_vel = tr.vel();
-    tr.last_chroma_d = tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : -1.0;
+    tr.last_chroma_d = chroma_distance(tr, m);
     if (m.has_chroma) {
       tr.chroma = tr.has_chroma ? p_.appearance_fade * tr.chroma + (1.0 - p_.appearance_fade) * m.chroma : m.chroma;
       tr.has_chroma = true;

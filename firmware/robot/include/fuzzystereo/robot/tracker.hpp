@@ -141,6 +141,10 @@ class MultiTracker {
   void mark_static(const std::vector<int>& ids);
 
  private:
+  // Chromaticity distance between a measurement and a track's fading mean; -1 when either has no colour.
+  static double chroma_distance(const Track& tr, const ObstacleMeasurement& m) {
+    return tr.has_chroma && m.has_chroma ? norm(m.chroma - tr.chroma) : -1.0;
+  }
   // A measurement's position std: its own, or pos_sigma_m when it has none.
   double meas_sigma(const ObstacleMeasurement& m) const { return m.sigma_m > 0 ? m.sigma_m : p_.pos_sigma_m; }
   // The maneuver switch is on (accel_sigma_steady_mps2 > 0), and a track's Q level.
