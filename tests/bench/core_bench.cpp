@@ -117,6 +117,21 @@ void BM_WtaLeft(benchmark::State& st) {
 }
 BENCHMARK(BM_WtaLeft)->Unit(benchmark::kMillisecond);
 
+// The segment-boundary refinement of both WTA maps (docs/algorithm.md 4b, [boundary] defaults of
+// the section) with its census transforms, as the matcher runs it when `[boundary] enabled`.
+void BM_Boundary(benchmark::State& st) {
+  const fs::Matcher m(params(), fs::load_fis_definition(""));
+  const auto r = m.match(pair().left, pair().right);
+  fs::BoundaryParams bp;
+  bp.enabled = true;
+  for (auto _ : st) {
+    const auto cl = fs::census_transform(pair().left, bp.census_radius), cr = fs::census_transform(pair().right, bp.census_radius);
+    benchmark::DoNotOptimize(fs::refine_boundaries(r.disp_left_wta, r.seg_left, cl, cr, +1, bp, nullptr));
+    benchmark::DoNotOptimize(fs::refine_boundaries(r.disp_right_wta, r.seg_right, cr, cl, -1, bp, nullptr));
+  }
+}
+BENCHMARK(BM_Boundary)->Unit(benchmark::kMillisecond);
+
 void BM_LrCheck(benchmark::State& st) {
   const fs::Matcher m(params(), fs::load_fis_definition(""));
   const auto r = m.match(pair().left, pair().right);

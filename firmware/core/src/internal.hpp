@@ -26,6 +26,11 @@
 #define FS_TARGET_CLONES_V4 __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
 // x86-64-v3 (AVX2 with POPCNT): the census Hamming sums of the boundary refinement (boundary/).
 #define FS_TARGET_CLONES_V3 __attribute__((target_clones("arch=x86-64-v3", "default")))
+// AVX-512 with VPOPCNTDQ (a vector popcount; Ice Lake, Zen 4): the boundary refinement's census
+// Hamming tables. target_clones has no feature-only clone for it on gcc 12 (its arch= names test the
+// CPU model, and Zen 4 matches none), so boundary/ picks it at run time with __builtin_cpu_supports.
+#define FS_TARGET_VPOPCNT __attribute__((target("arch=x86-64-v4,avx512vpopcntdq")))
+#define FS_HAVE_VPOPCNT_DISPATCH 1
 #else
 #define FS_TARGET_CLONES_V3
 #define FS_TARGET_CLONES

@@ -121,6 +121,17 @@ TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {
       // larger images: many segments, candidates from several neighbours, two passes
       {150, 77, 7, 4, 1, 1, 1.0, +1, 2}, {131, 70, 5, 4, 2, 2, 1.0, -1, 2},
   };
+  // Wide images with larger disparities and segments of several sizes: most segments take the
+  // implementation's lane path (16-column chunks, docs/algorithm.md 4b), whose boxes span one to
+  // several chunks and whose partners leave the other image near its border; the map also carries
+  // per-pixel deviations from the segment's value (as a second pass sees it).
+  struct WideCase {
+    int w, h, region, D, window, direction, passes, noise_pct;
+  };
+  const WideCase wide[] = {
+      {301, 61, 6, 40, 7, +1, 1, 0}, {301, 61, 6, 40, 7, -1, 1, 0},  {263, 53, 14, 60, 5, +1, 1, 15},
+      {263, 53, 14, 60, 9, -1, 2, 15}, {257, 47, 9, 24, 3, +1, 1, 30}, {257, 47, 22, 90, 7, -1, 1, 5},
+  };
   int switched_total = 0;
   for (const Case& c : cases) {
     const unsigned seed = static_cast<unsigned>(c.w * 31 + c.h + c.window);
@@ -144,6 +155,28 @@ TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {
     }
   }
   EXPECT_GT(switched_total, 100);  // the cases exercise the switch, not only "nothing to do"
+  int wide_switched = 0;
+  for (const WideCase& c : wide) {
+    const unsigned seed = static_cast<unsigned>(c.w * 17 + c.h + c.region + c.window);
+    const ImageU8 left = test::texture_image(c.w, c.h, seed), right = test::texture_image(c.w, c.h, seed + 1);
+    SegmentationParams sp;
+    sp.region_size = c.region;
+    const Segmentation seg = slic_segment(left, sp);
+    ImageI16 disp = painted_map(seg, c.D, seed + 2, 5);
+    std::mt19937 rng(seed + 3);
+    std::uniform_int_distribution<int> up(0, 99), ud(0, (c.D - 1) * kDispScale);
+    for (auto& v : disp.data)
+      if (up(rng) < c.noise_pct) v = up(rng) < 10 ? kInvalidDisp : static_cast<std::int16_t>(ud(rng));
+    BoundaryParams p;
+    p.enabled = true, p.window = c.window, p.passes = c.passes;
+    const ImageU32 cl = census_transform(left, 2), cr = census_transform(right, 2);
+    ImageU8 switched;
+    const ImageI16 got = refine_boundaries(disp, seg, cl, cr, c.direction, p, &switched);
+    const ImageI16 want = refine_reference(disp, cl, cr, c.direction, p, 24);
+    EXPECT_EQ(got.data, want.data) << c.w << "x" << c.h << " region " << c.region << " window " << c.window;
+    for (const auto v : switched.data) wide_switched += v;
+  }
+  EXPECT_GT(wide_switched, 1000);
 }
 
 // A textured background at 4 px and a textured square at 12 px. The WTA map gives the square's

@@ -7,6 +7,10 @@
 #include <bit>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 #include <stdexcept>
 #include <string>
 
@@ -67,6 +71,11 @@ struct SegScratch {
   std::vector<int> ds;                // rounded disparity of each table
   std::vector<std::int16_t> slot_of;  // [rounded disparity] -> table index, -1 = none
   std::vector<std::uint32_t> tables;  // ds.size() tables of (H_e + 1) x (W_e + 1), modulo 2^32
+  // The lane path's (refine_segment_lanes):
+  std::vector<std::int16_t> bins;          // rounded disparity of each table
+  std::vector<std::uint16_t> lane_tables;  // bins.size() tables of window sums, bh x (chunks * kLanes)
+  std::vector<std::uint16_t> ham;          // the Hamming rows of the table being built
+  std::vector<std::uint16_t> vsum;         // their column sums
 };
 
 struct Ctx {
@@ -134,7 +143,10 @@ void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::uint3
   }
 }
 
-void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc) {
+// The scalar path (segments near the image's left and right borders): per segment, a summed-area
+// table per rounded disparity its pixels need, built on first use, and each pixel's candidates one
+// by one.
+void refine_segment_scalar(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc) {
   const ImageI16& cur = *c.cur;
   const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
   if (rb == re) return;
@@ -192,6 +204,340 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
     }
   }
   for (const int d : sc.ds) sc.slot_of[d] = -1;  // reset for the next segment
+}
+
+// The lane path: a segment whose box rows, with the candidates' reach 2 step on either side, lie
+// inside the image is decided kLanes pixels of a box row at a time, every step a plain loop over
+// the lanes (vectorised): the candidates are contiguous loads of the map, and a candidate's cost is
+// picked from the segment's tables by comparing its rounded disparity with each table's. The
+// result is the scalar path's (and the reference's) bit for bit: the same candidates in the same
+// order, the same strict comparison.
+constexpr int kLanes = 16;
+
+// The lane helpers below take and return vectors by value; they are always inlined, so the ABI note
+// of gcc (-Wpsabi: a vector argument's passing differs between ISA levels) does not concern them.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+// One chunk of lanes as a gcc/clang vector (AVX2 / NEON / SSE2 registers; the code is the same on each).
+using U16L = std::uint16_t __attribute__((vector_size(2 * kLanes)));
+using I16L = std::int16_t __attribute__((vector_size(2 * kLanes)));
+using U32L = std::uint32_t __attribute__((vector_size(4 * kLanes)));
+// Half a chunk: the tables' Hamming rows end with one (window <= 9 needs n - 1 <= 8 columns more).
+constexpr int kHalf = kLanes / 2;
+using U16H = std::uint16_t __attribute__((vector_size(2 * kHalf)));
+using U32H = std::uint32_t __attribute__((vector_size(4 * kHalf)));
+
+template <class V, class T>
+[[gnu::always_inline]] inline V load(const T* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V, class T>
+[[gnu::always_inline]] inline void store(T* p, V v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+// Bit counts of 32-bit lanes (SWAR: the same code on every target), narrowed to 16 bits (a census
+// code has <= 24 bits).
+template <class V32>
+[[gnu::always_inline]] inline V32 popcount_swar(V32 x) {
+  x = x - ((x >> 1) & 0x55555555u);
+  x = (x & 0x33333333u) + ((x >> 2) & 0x33333333u);
+  x = (x + (x >> 4)) & 0x0F0F0F0Fu;
+  return (x * 0x01010101u) >> 24;
+}
+[[gnu::always_inline]] inline U16L popcount16(U32L x) { return __builtin_convertvector(popcount_swar(x), U16L); }
+[[gnu::always_inline]] inline U16H popcount16(U32H x) { return __builtin_convertvector(popcount_swar(x), U16H); }
+
+#if defined(FS_HAVE_VPOPCNT_DISPATCH)
+// The same with AVX-512 VPOPCNTDQ (inlined only into functions compiled with FS_TARGET_VPOPCNT).
+FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16L popcount16_vpopcnt(U32L x) {
+  static_assert(sizeof(U32L) == sizeof(__m512i));
+  __m512i v;
+  std::memcpy(&v, &x, sizeof v);
+  v = _mm512_popcnt_epi32(v);
+  std::memcpy(&x, &v, sizeof v);
+  return __builtin_convertvector(x, U16L);
+}
+FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16H popcount16_vpopcnt(U32H x) {
+  static_assert(sizeof(U32H) == sizeof(__m256i));
+  __m256i v;
+  std::memcpy(&v, &x, sizeof v);
+  v = _mm256_popcnt_epi32(v);
+  std::memcpy(&x, &v, sizeof v);
+  return __builtin_convertvector(x, U16H);
+}
+#endif
+
+struct LaneChunk {
+  const std::int16_t* v[9];          // the map at the chunk's pixels (v[0]) and at its 8 candidate places
+  const Run* runs;                   // the segment's runs on the chunk's row
+  int nruns, x;                      // their count; the chunk's first column
+  const std::uint16_t* const* cost;  // each table's window sums (row-major, the chunk's pixels at `off`)
+  std::size_t off;
+  const std::int16_t* bins;          // each table's rounded disparity
+  int tables, jump, margin;
+};
+
+// The window sum of each lane at the rounded disparity of v (0 where the segment has no table for
+// it) and whether it has one (-1 / 0).
+[[gnu::always_inline]] inline void pick_costs(const LaneChunk& ch, I16L v, I16L& cost, I16L& known) {
+  const I16L b = (v + I16L{} + kDispScale / 2) >> kDispShift;
+  cost = I16L{}, known = I16L{};
+  for (int t = 0; t < ch.tables; ++t) {
+    const I16L m = b == ch.bins[t];
+    cost |= load<I16L>(ch.cost[t] + ch.off) & m;
+    known |= m;
+  }
+}
+
+// Decides the chunk's pixels: out = the chosen disparity of each lane (a pixel without an estimate
+// or without a candidate keeps its value; lanes outside the segment are not to be used). Returns false, with `need` (bit j - 1
+// for candidate j, bit 8 for the pixel's own disparity) marking the lanes whose table the segment
+// does not have yet, when there are such lanes; the caller builds the tables and calls again.
+FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+bool decide_chunk(const LaneChunk& ch, std::int16_t* out, std::int16_t* need) {
+  const I16L d0 = load<I16L>(ch.v[0]);
+  const I16L invalid = I16L{} + kInvalidDisp;
+  I16L c, known;
+  pick_costs(ch, d0, c, known);
+  const I16L own_known = known;
+  I16L best = c - static_cast<std::int16_t>(ch.margin), best_d = d0, any = I16L{}, missing = I16L{};
+  I16L lane_x;  // the lanes' columns
+  for (int i = 0; i < kLanes; ++i) lane_x[i] = static_cast<std::int16_t>(ch.x + i);
+  I16L in_seg = I16L{};  // -1 where the lane's pixel belongs to the segment
+  for (int q = 0; q < ch.nruns; ++q)
+    in_seg |= (lane_x >= static_cast<std::int16_t>(ch.runs[q].x0)) & (lane_x < static_cast<std::int16_t>(ch.runs[q].x1));
+  const I16L valid0 = in_seg & (d0 != invalid);
+  const std::int16_t jump = static_cast<std::int16_t>(ch.jump);
+  for (int j = 1; j <= 8; ++j) {
+    const I16L v = load<I16L>(ch.v[j]);
+    pick_costs(ch, v, c, known);
+    const I16L diff = v - d0;
+    const I16L adiff = diff < 0 ? -diff : diff;
+    const I16L ok = valid0 & (v != invalid) & (adiff >= jump);
+    missing |= (ok & ~known) & static_cast<std::int16_t>(1 << (j - 1));
+    any |= ok;
+    const I16L better = ok & (c < best);  // ties keep the earlier candidate
+    best = better ? c : best;
+    best_d = better ? v : best_d;
+  }
+  missing |= (any & ~own_known) & static_cast<std::int16_t>(1 << 8);
+  store(out, best_d);
+  std::int16_t miss = 0;
+  for (int i = 0; i < kLanes; ++i) miss = static_cast<std::int16_t>(miss | missing[i]);
+  if (!miss) return true;
+  store(need, missing);
+  return false;
+}
+
+// Appends to the segment's list the rounded disparities that `need` (from decide_chunk) marks.
+void add_missing_bins(const LaneChunk& ch, const std::int16_t* need, SegScratch& sc, std::vector<std::int16_t>& bins) {
+  std::int16_t last[9];  // the value last added per place: neighbouring lanes mostly repeat it
+  for (std::int16_t& l : last) l = kInvalidDisp;
+  for (int i = 0; i < kLanes; ++i) {
+    if (!need[i]) continue;
+    for (int j = 0; j <= 8; ++j) {
+      if (!(need[i] & (1 << j))) continue;
+      const std::int16_t v = ch.v[j == 8 ? 0 : j + 1][i];
+      if (v == last[j]) continue;
+      last[j] = v;
+      const int d = disp_bin(v);
+      std::int16_t& k = sc.slot_of[d];
+      if (k < 0) {
+        k = static_cast<std::int16_t>(sc.ds.size());
+        sc.ds.push_back(d);
+        bins.push_back(static_cast<std::int16_t>(d));
+      }
+    }
+  }
+}
+
+// True when the lane path may run the segment with box columns [x0, x1]: its chunks of kLanes
+// columns, the candidates' reach (2 step) and its tables' Hamming rows (from x0 - r to kHalf
+// columns past the last chunk) all lie inside the image.
+bool lane_path_fits(int x0, int x1, int w, int k, int r) {
+  const int chunks = (x1 - x0 + kLanes) / kLanes;
+  return x0 - std::max(2 * k, r) >= 0 && x0 + chunks * kLanes + std::max(2 * k, kHalf - r) <= w;
+}
+
+// A lane table of rounded disparity d: the window sums at the pixels of a segment's box, `chunks` *
+// kLanes columns from x0 (the row stride Wt) and bh rows from y0 — for the box's columns the sums of
+// build_table (the rest is read by lanes outside the segment only). Separable and without
+// remainder loops: the Hamming rows (below), their running sums over n rows, then sums over n
+// columns, each a whole number of chunks and half chunks.
+//
+// The Hamming rows: He = bh + n - 1 rows of Wh = Wt + kHalf columns from (X0, Y0) = (x0 - r, y0 - r)
+// (rows clamped to the image as the reference does, columns inside it by lane_path_fits; a
+// partner outside the other image counts `bits`). Two variants that differ in the bit count of a
+// whole chunk only.
+#define FS_HAMMING_ROWS(NAME, ATTR, POPCOUNT)                                                              \
+  ATTR void NAME(const Ctx& c, int X0, int Y0, int chunks, int He, int d, std::uint16_t* ham) {         \
+    const int w = c.cref->width, h = c.cref->height;                                                      \
+    const int Wt = chunks * kLanes, Wh = Wt + kHalf;                                                      \
+    const int shift = -c.direction * d;                                                                   \
+    const auto bits = static_cast<std::uint16_t>(c.bits);                                                 \
+    for (int j = 0; j < He; ++j) {                                                                        \
+      const int y = std::clamp(Y0 + j, 0, h - 1);                                                         \
+      const std::uint32_t* a = c.cref->row(y) + X0;                                                       \
+      const std::uint32_t* bo = c.cother->row(y);                                                         \
+      std::uint16_t* out = ham + std::size_t(j) * Wh;                                                     \
+      for (int q = 0; q < chunks; ++q) {                                                                  \
+        const int xs = X0 + q * kLanes + shift; /* the partner of the chunk's first column */             \
+        if (xs >= 0 && xs + kLanes <= w) {                                                                \
+          store(out + q * kLanes, POPCOUNT(load<U32L>(a + q * kLanes) ^ load<U32L>(bo + xs)));           \
+        } else {                                                                                          \
+          for (int i = 0; i < kLanes; ++i) {                                                              \
+            const int xo = xs + i;                                                                        \
+            out[q * kLanes + i] = (xo < 0 || xo >= w)                                                     \
+                                      ? bits                                                              \
+                                      : static_cast<std::uint16_t>(std::popcount(a[q * kLanes + i] ^ bo[xo])); \
+          }                                                                                               \
+        }                                                                                                 \
+      }                                                                                                   \
+      const int xt = Wt;                                                                                  \
+      const int xs = X0 + xt + shift;                                                                     \
+      if (xs >= 0 && xs + kHalf <= w) {                                                                   \
+        store(out + xt, POPCOUNT(load<U32H>(a + xt) ^ load<U32H>(bo + xs)));                              \
+      } else {                                                                                            \
+        for (int i = 0; i < kHalf; ++i) {                                                                 \
+          const int xo = xs + i;                                                                          \
+          out[xt + i] = (xo < 0 || xo >= w) ? bits : static_cast<std::uint16_t>(std::popcount(a[xt + i] ^ bo[xo])); \
+        }                                                                                                 \
+      }                                                                                                   \
+    }                                                                                                     \
+  }
+FS_HAMMING_ROWS(hamming_rows, FS_TARGET_CLONES_V3, popcount16)
+#if defined(FS_HAVE_VPOPCNT_DISPATCH)
+FS_HAMMING_ROWS(hamming_rows_vpopcnt, FS_TARGET_VPOPCNT, popcount16_vpopcnt)
+#endif
+#undef FS_HAMMING_ROWS
+
+template <int N>
+[[gnu::always_inline]] inline void lane_table_impl(const Ctx& c, int x0, int y0, int chunks, int bh, int d,
+                                                   std::uint16_t* __restrict ham, std::uint16_t* __restrict vsum,
+                                                   std::uint16_t* __restrict t, int n_runtime) {
+  const int n = N > 0 ? N : n_runtime;
+  const int r = n / 2;
+  const int Wh = chunks * kLanes + kHalf;  // Hamming row width (>= chunks * kLanes + n - 1)
+#if defined(FS_HAVE_VPOPCNT_DISPATCH)
+  static const bool vpopcnt = __builtin_cpu_supports("avx512vpopcntdq");
+  if (vpopcnt)
+    hamming_rows_vpopcnt(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
+  else
+#endif
+    hamming_rows(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
+  // Column sums of n rows, running down the box: whole chunks, then the half chunk.
+  auto column_sums = [&]<class V>(int x) {
+    V acc = load<V>(ham + x);
+    for (int k = 1; k < n; ++k) acc += load<V>(ham + std::size_t(k) * Wh + x);
+    store(vsum + x, acc);
+    for (int j = 1; j < bh; ++j) {
+      acc += load<V>(ham + std::size_t(j - 1 + n) * Wh + x) - load<V>(ham + std::size_t(j - 1) * Wh + x);
+      store(vsum + std::size_t(j) * Wh + x, acc);
+    }
+  };
+  for (int q = 0; q < chunks; ++q) column_sums.template operator()<U16L>(q * kLanes);
+  column_sums.template operator()<U16H>(chunks * kLanes);
+  // Sums of n columns.
+  const int Wt = chunks * kLanes;
+  for (int j = 0; j < bh; ++j) {
+    const std::uint16_t* v = vsum + std::size_t(j) * Wh;
+    for (int q = 0; q < chunks; ++q) {
+      U16L acc = load<U16L>(v + q * kLanes);
+      for (int k = 1; k < n; ++k) acc += load<U16L>(v + q * kLanes + k);
+      store(t + std::size_t(j) * Wt + q * kLanes, acc);
+    }
+  }
+}
+
+FS_TARGET_CLONES FS_NO_UNROLL_AND_JAM
+void lane_table(const Ctx& c, int x0, int y0, int chunks, int bh, int d, std::uint16_t* ham, std::uint16_t* vsum,
+                std::uint16_t* t) {
+  const int n = 2 * c.r + 1;
+  if (n == 7) return lane_table_impl<7>(c, x0, y0, chunks, bh, d, ham, vsum, t, n);
+  if (n == 5) return lane_table_impl<5>(c, x0, y0, chunks, bh, d, ham, vsum, t, n);
+  lane_table_impl<0>(c, x0, y0, chunks, bh, d, ham, vsum, t, n);
+}
+
+void refine_segment_lanes(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc, int x0, int x1) {
+  const ImageI16& cur = *c.cur;
+  const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
+  const int y0 = seg.runs[rb].y, y1 = seg.runs[re - 1].y;
+  const int r = c.r;
+  const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+  const int chunks = (bw + kLanes - 1) / kLanes;
+  const int Wt = chunks * kLanes;
+  const std::size_t tsize = std::size_t(Wt) * bh;
+  const std::size_t hsize = std::size_t(Wt + kHalf) * (bh + 2 * r);
+  if (sc.ham.size() < hsize) sc.ham.resize(hsize);
+  if (sc.vsum.size() < hsize) sc.vsum.resize(hsize);
+  sc.ds.clear();
+  std::vector<std::int16_t>& bins = sc.bins;
+  bins.clear();
+  std::size_t built = 0;
+  const int h = cur.height, k = c.step;
+  std::int16_t need[kLanes], res[kLanes];
+  const std::uint16_t* cost[512];
+  std::int32_t ri = rb;
+  for (int y = y0; y <= y1; ++y) {
+    const std::int32_t r0 = ri;
+    while (ri < re && seg.runs[ri].y == y) ++ri;
+    if (r0 == ri) continue;
+    const std::int16_t* row = cur.row(y);
+    const std::int16_t* rows[5] = {cur.row(std::max(y - 2 * k, 0)), cur.row(std::max(y - k, 0)), row,
+                                   cur.row(std::min(y + k, h - 1)), cur.row(std::min(y + 2 * k, h - 1))};
+    std::int16_t* out = c.next->row(y);
+    for (int ch_i = 0; ch_i < chunks; ++ch_i) {
+      const int xc = x0 + ch_i * kLanes;
+      LaneChunk ch;  // every field set below (no zeroing: this runs per chunk)
+      bool any_in = false;
+      for (std::int32_t q = r0; q < ri; ++q) any_in |= seg.runs[q].x0 < xc + kLanes && seg.runs[q].x1 > xc;
+      if (!any_in) continue;
+      ch.runs = seg.runs.data() + r0, ch.nruns = ri - r0, ch.x = xc;
+      ch.v[0] = row + xc;
+      ch.v[1] = row + xc - k, ch.v[2] = row + xc + k, ch.v[3] = rows[1] + xc, ch.v[4] = rows[3] + xc;
+      ch.v[5] = row + xc - 2 * k, ch.v[6] = row + xc + 2 * k, ch.v[7] = rows[0] + xc, ch.v[8] = rows[4] + xc;
+      ch.jump = c.jump, ch.margin = c.margin;
+      const std::size_t off = std::size_t(y - y0) * Wt + std::size_t(xc - x0);
+      for (;;) {
+        if (built < bins.size()) {
+          if (bins.size() > 512) {  // more neighbours' disparities than the lane path holds: the scalar path
+            for (const int d : sc.ds) sc.slot_of[d] = -1;
+            return refine_segment_scalar(c, seg, s, sc);
+          }
+          if (sc.lane_tables.size() < bins.size() * tsize) sc.lane_tables.resize(bins.size() * tsize);
+          for (; built < bins.size(); ++built)
+            lane_table(c, x0, y0, chunks, bh, bins[built], sc.ham.data(), sc.vsum.data(), sc.lane_tables.data() + built * tsize);
+          for (std::size_t t = 0; t < bins.size(); ++t) cost[t] = sc.lane_tables.data() + t * tsize;
+        }
+        ch.cost = cost, ch.off = off, ch.bins = bins.data(), ch.tables = static_cast<int>(bins.size());
+        if (decide_chunk(ch, res, need)) break;
+        add_missing_bins(ch, need, sc, bins);
+      }
+      // The segment's pixels only: a neighbouring segment's (another thread's) are not touched.
+      for (std::int32_t q = r0; q < ri; ++q) {
+        const int a = std::max(int(seg.runs[q].x0), xc), e = std::min(int(seg.runs[q].x1), xc + kLanes);
+        for (int x = a; x < e; ++x) out[x] = res[x - xc];
+      }
+    }
+  }
+  for (const int d : sc.ds) sc.slot_of[d] = -1;  // reset for the next segment
+}
+
+void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc) {
+  const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
+  if (rb == re) return;
+  int x0 = seg.runs[rb].x0, x1 = seg.runs[rb].x1 - 1;
+  for (std::int32_t ri = rb; ri < re; ++ri) {
+    x0 = std::min(x0, int(seg.runs[ri].x0));
+    x1 = std::max(x1, int(seg.runs[ri].x1) - 1);
+  }
+  if (lane_path_fits(x0, x1, c.cur->width, c.step, c.r)) return refine_segment_lanes(c, seg, s, sc, x0, x1);
+  refine_segment_scalar(c, seg, s, sc);
 }
 
 }  // namespace
