@@ -212,7 +212,7 @@ struct LoopParams {
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
       stuck_exit_m, give_up_after_s, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
-  bool stuck_keep_unseen, body_fit;
+  bool stuck_keep_unseen, stuck_speed_follows_heading, body_fit;
   robot::BodyFitParams body;
   int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
@@ -274,6 +274,7 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.stuck_exit_m = v.num("loop.stuck_exit_m");
   p.give_up_after_s = v.num("loop.give_up_after_s");
   p.stuck_keep_unseen = v.flag("loop.stuck_keep_unseen");
+  p.stuck_speed_follows_heading = v.flag("loop.stuck_speed_follows_heading");
   p.blocked_confirm_range_m = v.num("loop.blocked_confirm_range_m");
   p.memory_s = v.num("loop.memory_s");
   p.memory_cap_m = v.num("loop.memory_cap_m");
@@ -1328,6 +1329,9 @@ LoopResult RobotLoop::run() {
     // Ground the camera saw free (or a surface on) within [loop] seen_max_age_s: [planner] unseen_check_s.
     const std::int64_t seen_after_ns = t_frame - t0 - static_cast<std::int64_t>(lp.seen_max_age_s * 1e9);
     robot::PlanContext ctx{&last_route, {}, memory.empty() ? nullptr : &memory};
+    // While stuck, [loop] stuck_speed_follows_heading: slow down and turn towards the carrot instead of
+    // looping round it at speed (the gap timeouts, docs/robot.md "Session 48").
+    ctx.speed_follows_heading = stuck && lp.stuck_speed_follows_heading;
     // Inside this frame's view counts as seen: where the camera looks now but measured nothing (no
     // texture, too near) the map and the front stop decide; the rule is about turning into the sides.
     if (I.pp.unseen_check_s > 0)

@@ -471,7 +471,8 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
   // The speed the w_speed term rewards: full speed, or with [planner] speed_follows_heading full speed times the
   // cosine of the heading error to the carrot (0 from 90 deg on: slow down and turn on the spot when facing away).
   const double vmax_ref = std::max(1e-6, rp_.max_speed_mps);
-  const double v_ref = pp_.speed_follows_heading && carrot_dist0 > 1e-3
+  const bool follows_heading = pp_.speed_follows_heading || ctx.speed_follows_heading;
+  const double v_ref = follows_heading && carrot_dist0 > 1e-3
                            ? vmax_ref * std::max(0.0, std::cos(bearing_of(pose, out.carrot)))
                            : vmax_ref;
   const bool check_seen = pp_.unseen_check_s > 0 && static_cast<bool>(ctx.recently_seen);
@@ -507,7 +508,7 @@ PlanOutput Planner::plan(const Pose2D& pose, const BodyTwist& current, Vec2 goal
       const double soft = pp_.safety_margin_m + rp_.radius_m;
       const double clear_pen = std::clamp((soft - a.min_gap) / soft, 0.0, 1.0);
       const double cost = pp_.w_heading * heading / M_PI + pp_.w_progress * progress +
-                          pp_.w_clearance * clear_pen + pp_.w_speed * (pp_.speed_follows_heading ? std::abs(v_ref - v) / vmax_ref : 1.0 - v / vmax_ref) +
+                          pp_.w_clearance * clear_pen + pp_.w_speed * (follows_heading ? std::abs(v_ref - v) / vmax_ref : 1.0 - v / vmax_ref) +
                           2.0 * collide_pen +
                           (use_memory ? pp_.w_memory * memory_depth(pose, v, w, *ctx.memory, pp_, rp_) : 0.0);
       if (cost < best_cost) {

@@ -201,6 +201,17 @@ TEST(Planner, SpeedFollowsHeadingSlowsARobotFacingAwayFromItsCarrot) {
   const PlanOutput b = Planner(pp, rp).plan(start, moving, ahead, {});
   EXPECT_DOUBLE_EQ(a.cmd.v, b.cmd.v);
   EXPECT_DOUBLE_EQ(a.cmd.omega, b.cmd.omega);
+  // Per call (PlanContext::speed_follows_heading, the loop's [loop] stuck_speed_follows_heading while
+  // stuck): with the parameter off, the context switches the same behaviour on for that plan only.
+  pp.speed_follows_heading = false;
+  const Planner plain(pp, rp);
+  PlanContext stuck;
+  stuck.speed_follows_heading = true;
+  const PlanOutput by_ctx = plain.plan(start, moving, behind, {}, stuck);
+  EXPECT_DOUBLE_EQ(by_ctx.cmd.v, slow.cmd.v);
+  EXPECT_DOUBLE_EQ(by_ctx.cmd.omega, slow.cmd.omega);
+  const PlanOutput again = plain.plan(start, moving, behind, {});
+  EXPECT_DOUBLE_EQ(again.cmd.v, loop.cmd.v);
 }
 
 TEST(Planner, ReachedStops) {

@@ -51,6 +51,9 @@ struct PlanContext {
   // Soft circles where a mover that left the view may be now ([planner] w_memory > 0): they cost,
   // never block; nullptr = none.
   const std::vector<CircleObstacle>* memory = nullptr;
+  // [planner] speed_follows_heading for this call even when the parameter is off (the loop: while
+  // stuck, with [loop] stuck_speed_follows_heading).
+  bool speed_follows_heading = false;
 };
 
 class Planner {
