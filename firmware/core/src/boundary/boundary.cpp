@@ -255,20 +255,10 @@ template <class V32>
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
 // The same with AVX-512 VPOPCNTDQ (inlined only into functions compiled with FS_TARGET_VPOPCNT).
 FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16L popcount16_vpopcnt(U32L x) {
-  static_assert(sizeof(U32L) == sizeof(__m512i));
-  __m512i v;
-  std::memcpy(&v, &x, sizeof v);
-  v = _mm512_popcnt_epi32(v);
-  std::memcpy(&x, &v, sizeof v);
-  return __builtin_convertvector(x, U16L);
+  return __builtin_convertvector(std::bit_cast<U32L>(_mm512_popcnt_epi32(std::bit_cast<__m512i>(x))), U16L);
 }
 FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16H popcount16_vpopcnt(U32H x) {
-  static_assert(sizeof(U32H) == sizeof(__m256i));
-  __m256i v;
-  std::memcpy(&v, &x, sizeof v);
-  v = _mm256_popcnt_epi32(v);
-  std::memcpy(&x, &v, sizeof v);
-  return __builtin_convertvector(x, U16H);
+  return __builtin_convertvector(std::bit_cast<U32H>(_mm256_popcnt_epi32(std::bit_cast<__m256i>(x))), U16H);
 }
 #endif
 
