@@ -309,7 +309,8 @@ bool decide_chunk(const LaneChunk& ch, std::int16_t* out, std::int16_t* need) {
     const I16L diff = v - d0;
     const I16L adiff = diff < 0 ? -diff : diff;
     const I16L ok = valid0 & (v != invalid) & (adiff >= jump);
-    missing |= (ok & ~known) & static_cast<std::int16_t>(1 << (j - 1));
+    const std::int16_t bit = static_cast<std::int16_t>(1 << (j - 1));
+    missing |= (ok & ~known) & bit;
     any |= ok;
     const I16L better = ok & (c < best);  // ties keep the earlier candidate
     best = better ? c : best;
