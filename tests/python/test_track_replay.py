@@ -38,15 +38,20 @@ def test_the_reference_filter_reproduces_the_firmwares_states(demo_record: Path)
     assert r["movers"]["replay_pos_rmse_m"] == pytest.approx(r["movers"]["firmware_pos_rmse_m"], abs=1e-9)
 
 
-@pytest.fixture(scope="module")
-def suite_record(firmware_bin, tmp_path_factory) -> Path:
-    """One closed-loop suite scenario (seed 901, scenario 0: movers; its tracks trip the maneuver switch)."""
-    rec = tmp_path_factory.mktemp("replay_suite")
-    p = subprocess.run([str(firmware_bin), "sim", "suite", "--count", "100", "--blocked", "0", "--seed", "901", "--only", "0",
-                        "--jobs", "1", "--record", str(rec), "--snapshot-every", "0"],
-                       capture_output=True, text=True, timeout=300)
+def record_suite_run(firmware_bin, rec: Path, config: Path | None = None) -> Path:
+    """Records closed-loop suite scenario 0 of seed 901 (movers; its tracks trip the maneuver switch) under `rec`."""
+    args = [str(firmware_bin), "sim", "suite", "--count", "100", "--blocked", "0", "--seed", "901", "--only", "0",
+            "--jobs", "1", "--record", str(rec), "--snapshot-every", "0"]
+    if config is not None:
+        args += ["--config", str(config)]
+    p = subprocess.run(args, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     return rec / "suite-901-0"
+
+
+@pytest.fixture(scope="module")
+def suite_record(firmware_bin, tmp_path_factory) -> Path:
+    return record_suite_run(firmware_bin, tmp_path_factory.mktemp("replay_suite"))
 
 
 def test_the_reference_reproduces_the_maneuver_switch_of_a_suite_run(suite_record: Path) -> None:
@@ -149,12 +154,7 @@ def test_the_reference_reproduces_the_coast_decay(firmware_bin, tmp_path: Path) 
     # on both sides; the record's own config carries the setting.
     cfg = tmp_path / "decay.toml"
     cfg.write_text("[tracker]\ncoast_decay_s = 0.5\n")
-    rec = tmp_path / "rec"
-    p = subprocess.run([str(firmware_bin), "sim", "suite", "--count", "100", "--blocked", "0", "--seed", "901", "--only",
-                        "0", "--jobs", "1", "--config", str(cfg), "--record", str(rec), "--snapshot-every", "0"],
-                       capture_output=True, text=True, timeout=300)
-    assert p.returncode == 0, p.stderr
-    run = rec / "suite-901-0"
+    run = record_suite_run(firmware_bin, tmp_path / "rec", cfg)
     r = track_replay([run])
     assert r["agreement"]["updates"] > 100
     assert r["agreement"]["max_pos_diff_m"] < 1e-4, r["agreement"]

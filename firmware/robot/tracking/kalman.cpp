@@ -31,11 +31,12 @@ Mat4 CvKalman::Q(double dt, double accel_sigma) {
   return q;
 }
 
-void CvKalman::predict(double dt, double accel_sigma) {
-  const Mat4 f = F(dt);
-  x_ = f * x_;                                // eq. (26)/(29), B u = 0
+void CvKalman::propagate(const Mat4& f, double dt, double accel_sigma) {
+  x_ = f * x_;                                       // eq. (26)/(29), B u = 0
   P_ = f * P_ * f.transpose() + Q(dt, accel_sigma);  // eq. (26)
 }
+
+void CvKalman::predict(double dt, double accel_sigma) { propagate(F(dt), dt, accel_sigma); }
 
 Mat4 CvKalman::F_damped(double dt, double tau) {
   const double a = std::exp(-dt / tau);
@@ -46,9 +47,7 @@ Mat4 CvKalman::F_damped(double dt, double tau) {
 }
 
 void CvKalman::predict_damped(double dt, double tau, double accel_sigma) {
-  const Mat4 f = F_damped(dt, tau);
-  x_ = f * x_;
-  P_ = f * P_ * f.transpose() + Q(dt, accel_sigma);
+  propagate(F_damped(dt, tau), dt, accel_sigma);
 }
 
 void CvKalman::add_process_noise(double dt, double accel_sigma) {

@@ -84,6 +84,7 @@ struct Ctx {
   const ImageU32* cother;
   ImageI16* next;
   int direction, r, bits, margin, jump, step;
+  bool vpopcnt;  // the CPU has AVX-512 VPOPCNTDQ (lane tables' Hamming rows), decided once per refinement
 };
 
 // The candidates of pixel (x, y), in the order of the scalar reference: the map's values at -k, +k
@@ -146,16 +147,11 @@ void build_table(const Ctx& c, int X0, int Y0, int We, int He, int d, std::uint3
 // The scalar path (segments near the image's left and right borders): per segment, a summed-area
 // table per rounded disparity its pixels need, built on first use, and each pixel's candidates one
 // by one.
-void refine_segment_scalar(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc) {
+// Box columns [x0, x1] (refine_segment's).
+void refine_segment_scalar(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc, int x0, int x1) {
   const ImageI16& cur = *c.cur;
   const std::int32_t rb = seg.run_begin[s], re = seg.run_begin[s + 1];
-  if (rb == re) return;
-  int x0 = seg.runs[rb].x0, x1 = seg.runs[rb].x1 - 1;
   const int y0 = seg.runs[rb].y, y1 = seg.runs[re - 1].y;
-  for (std::int32_t ri = rb; ri < re; ++ri) {
-    x0 = std::min(x0, int(seg.runs[ri].x0));
-    x1 = std::max(x1, int(seg.runs[ri].x1) - 1);
-  }
   const int r = c.r, n = 2 * r + 1;
   const int X0 = x0 - r, Y0 = y0 - r, We = x1 - x0 + 1 + 2 * r, He = y1 - y0 + 1 + 2 * r;
   const std::size_t stride = std::size_t(We) + 1;
@@ -415,8 +411,7 @@ template <int N>
   const int r = n / 2;
   const int Wh = chunks * kLanes + kHalf;  // Hamming row width (>= chunks * kLanes + n - 1)
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
-  static const bool vpopcnt = __builtin_cpu_supports("avx512vpopcntdq");
-  if (vpopcnt)
+  if (c.vpopcnt)
     hamming_rows_vpopcnt(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
   else
 #endif
@@ -498,7 +493,7 @@ void refine_segment_lanes(const Ctx& c, const Segmentation& seg, int s, SegScrat
         if (built < bins.size()) {
           if (bins.size() > 512) {  // more neighbours' disparities than the lane path holds: the scalar path
             for (const int d : sc.ds) sc.slot_of[d] = -1;
-            return refine_segment_scalar(c, seg, s, sc);
+            return refine_segment_scalar(c, seg, s, sc, x0, x1);
           }
           if (sc.lane_tables.size() < bins.size() * tsize) sc.lane_tables.resize(bins.size() * tsize);
           for (; built < bins.size(); ++built)
@@ -528,7 +523,7 @@ void refine_segment(const Ctx& c, const Segmentation& seg, int s, SegScratch& sc
     x1 = std::max(x1, int(seg.runs[ri].x1) - 1);
   }
   if (lane_path_fits(x0, x1, c.cur->width, c.step, c.r)) return refine_segment_lanes(c, seg, s, sc, x0, x1);
-  refine_segment_scalar(c, seg, s, sc);
+  refine_segment_scalar(c, seg, s, sc, x0, x1);
 }
 
 }  // namespace
@@ -543,6 +538,11 @@ ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const 
   c.direction = direction, c.r = p.window / 2, c.bits = side * side - 1;  // a census code's bit count
   c.margin = static_cast<int>(std::lround(p.margin * p.window * p.window));  // [bits per window]
   c.jump = p.min_jump * kDispScale, c.step = p.step;
+#if defined(FS_HAVE_VPOPCNT_DISPATCH)
+  c.vpopcnt = __builtin_cpu_supports("avx512vpopcntdq");
+#else
+  c.vpopcnt = false;
+#endif
   // Tables are indexed by rounded disparity; every candidate is a value of the input map.
   const int bins = detect::disparity_bins(disp);
   ImageI16 out = disp;  // each pass reads the previous one's map and writes a copy of it

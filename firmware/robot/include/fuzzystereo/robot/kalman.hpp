@@ -57,6 +57,8 @@ class CvKalman {
   double pos_sigma() const;
 
  private:
+  // x = f x, P = f P f^T + Q(dt, accel_sigma): the prediction step for a given transition f.
+  void propagate(const Mat4& f, double dt, double accel_sigma);
   Vec4 x_ = Vec4::Zero();
   Mat4 P_ = Mat4::Identity();
 };
