@@ -7,6 +7,7 @@ import json
 import math
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -54,16 +55,21 @@ def suite_record(firmware_bin, tmp_path_factory) -> Path:
     return record_suite_run(firmware_bin, tmp_path_factory.mktemp("replay_suite"))
 
 
-def test_the_reference_reproduces_the_maneuver_switch_of_a_suite_run(suite_record: Path) -> None:
-    r = track_replay([suite_record])
+def assert_replay_agrees_and_setting_matters(run: Path, off: dict[str, Any]) -> None:
+    """The reference replays the firmware's filter on `run`, and the setting `off` turns off moves it by centimetres."""
+    r = track_replay([run])
     # Tracks that coasted for seconds before their next update (covariance grown to 10^3 m^2) make that
     # update ill-conditioned: the two implementations then differ in the 5th-6th digit, not more.
     assert r["agreement"]["updates"] > 100
     assert r["agreement"]["max_pos_diff_m"] < 1e-4, r["agreement"]
     assert r["agreement"]["max_vel_diff_mps"] < 1e-4, r["agreement"]
+    moved = track_replay([run], off)
+    assert moved["agreement"]["max_pos_diff_m"] > 1e-2
+
+
+def test_the_reference_reproduces_the_maneuver_switch_of_a_suite_run(suite_record: Path) -> None:
     # The switch matters on this run: never switching moves the states by centimetres.
-    off = track_replay([suite_record], {"tracker.maneuver_nis": 100.0})
-    assert off["agreement"]["max_pos_diff_m"] > 1e-2
+    assert_replay_agrees_and_setting_matters(suite_record, {"tracker.maneuver_nis": 100.0})
 
 
 def test_another_setting_changes_the_replayed_filter(demo_record: Path) -> None:
@@ -155,13 +161,8 @@ def test_the_reference_reproduces_the_coast_decay(firmware_bin, tmp_path: Path) 
     cfg = tmp_path / "decay.toml"
     cfg.write_text("[tracker]\ncoast_decay_s = 0.5\n")
     run = record_suite_run(firmware_bin, tmp_path / "rec", cfg)
-    r = track_replay([run])
-    assert r["agreement"]["updates"] > 100
-    assert r["agreement"]["max_pos_diff_m"] < 1e-4, r["agreement"]
-    assert r["agreement"]["max_vel_diff_mps"] < 1e-4, r["agreement"]
     # without the decay the replay's coasting tracks drift off the firmware's
-    off = track_replay([run], {"tracker.coast_decay_s": 0.0})
-    assert off["agreement"]["max_pos_diff_m"] > 1e-2
+    assert_replay_agrees_and_setting_matters(run, {"tracker.coast_decay_s": 0.0})
     # coast_decay_unseen_only needs the camera's view, which the record does not hold: refused by name
     conf = run / "config.toml"
     text = conf.read_text()
