@@ -31,6 +31,12 @@
 // CPU model, and Zen 4 matches none), so boundary/ picks it at run time with __builtin_cpu_supports.
 #define FS_TARGET_VPOPCNT __attribute__((target("arch=x86-64-v4,avx512vpopcntdq")))
 #define FS_HAVE_VPOPCNT_DISPATCH 1
+// AVX-512 F/BW/CD/DQ/VL (x86-64-v4) for kernels written with gcc vector types whose operations only
+// AVX-512BW has as single instructions (a 32-lane uint16 table lookup, vpermw): ESR's sorted block
+// entropy (esr/). Without it gcc lowers them to scalar code, so esr/ picks them at run time
+// (__builtin_cpu_supports) and otherwise keeps its scalar sliding-window kernel.
+#define FS_TARGET_AVX512BW __attribute__((target("arch=x86-64-v4")))
+#define FS_HAVE_AVX512BW_DISPATCH 1
 #else
 #define FS_TARGET_CLONES_V3
 #define FS_TARGET_CLONES

@@ -280,6 +280,41 @@ TEST(Esr, BlockEntropyWithANeedMaskEqualsTheFullImageWhereNeeded) {
   }
 }
 
+TEST(Esr, BothEntropyKernelsMatchTheReferenceOnOddSizes) {
+  // The sorted kernel (5 x 5 blocks, 32 pixels at a time) and the sliding one against per-block
+  // recomputation: widths below, at and across multiples of its 32 lanes, 1-4 rows (blocks clipped
+  // above and below at once), invalid pixels, bins clamped at max_disparity, need masks, and
+  // segment-like patches (long runs of equal bins: the sorted runs' positions reach 25). kSorted runs
+  // its AVX-512BW build where the CPU has it and its portable build otherwise (aarch64, qemu).
+  for (auto [w, h, maxd, invalid_pct, block] : {std::tuple{1, 1, 20, 0, 1}, {5, 2, 20, 10, 1}, {31, 3, 20, 10, 3},
+                                                 {32, 4, 6, 20, 2}, {33, 17, 20, 5, 4}, {97, 23, 12, 10, 7},
+                                                 {64, 9, 40, 60, 3}, {70, 13, 3, 0, 9}}) {
+    for (const bool patches : {false, true}) {
+      ImageI16 d = random_disp(w, h, 20, unsigned(w * 31 + h), invalid_pct, block);
+      if (patches)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) d.at(x, y) = d.at(x - x % 9, y - y % 6);
+      std::mt19937 rng(unsigned(w + 7 * h));
+      std::uniform_int_distribution<int> u(0, 99);
+      ImageU8 need(w, h, 0);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) need.at(x, y) = u(rng) < 50 ? 1 : 0;
+      for (const EntropyKernel k : {EntropyKernel::kSorted, EntropyKernel::kSliding, EntropyKernel::kAuto}) {
+        const ImageI32 full = block_entropy(d, 5, maxd, nullptr, k), part = block_entropy(d, 5, maxd, &need, k);
+        ImageI16 clamped = d;  // the reference clamps bins at max_disparity as both kernels do
+        for (auto& v : clamped.data)
+          if (v != kInvalidDisp && ((v + kDispScale / 2) >> kDispShift) > maxd) v = static_cast<std::int16_t>(maxd * kDispScale);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            const std::int32_t want = entropy_reference(clamped, x, y, 5);
+            ASSERT_EQ(full.at(x, y), want) << x << "," << y << " size " << w << "x" << h << " kernel " << int(k);
+            ASSERT_EQ(part.at(x, y), need.at(x, y) ? want : 0) << x << "," << y << " kernel " << int(k);
+          }
+      }
+    }
+  }
+}
+
 TEST(Esr, EntropyOfKnownBlocks) {
   ImageI16 d(9, 9, static_cast<std::int16_t>(3 * kDispScale));
   EXPECT_EQ(block_entropy(d, 3, 8).at(4, 4), 0);  // constant block: 0 bit

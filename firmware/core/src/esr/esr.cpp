@@ -10,9 +10,18 @@
 // which telescopes to the same integer sum as k single steps, so in practice an output pixel
 // costs a few table reads; where the column entering the block equals the one leaving it, the
 // entropy is carried over without any. Rows are independent and run in parallel.
+//
+// Sorted kernel (5 x 5 blocks, the default window): per block, sum_c T[c] telescopes over the
+// block's bins in sorted order, sum_c T[c] = sum_i dT[p_i] with dT[k] = T[k] - T[k - 1] and p_i the
+// position of sample i within its run of equal bins. A compare-exchange network sorts the 25 bins of
+// 32 neighbouring blocks at once (uint16 lanes, min / max), a scan gives every p_i, and dT[p_i] is a
+// 32-entry table lookup per lane; no branch depends on the data. Same integers as the sliding
+// kernel; AVX-512BW only (vpermw), picked at run time.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <vector>
 
 #include "fuzzystereo/stages.hpp"
@@ -64,9 +73,181 @@ void same_row(const std::int16_t* __restrict b, const std::int16_t* __restrict b
     s[x] = b[x] == b[x - window] ? next : std::int16_t(0);
   }
 }
+// ---- the sorted kernel (5 x 5 blocks) ----------------------------------------------------------
+
+constexpr int kSortN = 25;      // samples of a 5 x 5 block
+constexpr int kSortLanes = 32;  // uint16 lanes of one AVX-512 register: 32 blocks side by side
+using SortV = std::uint16_t __attribute__((vector_size(2 * kSortLanes)));
+// Invalid pixels and pixels outside the image (the clipped block): sort after every bin (<= 32767)
+// and are not counted.
+constexpr std::uint16_t kSortSentinel = 0xFFFF;
+static_assert(static_cast<std::uint16_t>(std::int16_t{-1}) == kSortSentinel, "bins_row marks an invalid pixel -1");
+
+struct CompareExchange {
+  std::uint8_t a, b;  // after it, sample a <= sample b
+};
+
+// Batcher's odd-even merge sort of 32 inputs (191 compare-exchanges; Knuth, TAOCP 5.3.4, the
+// iterative form) with inputs 25..31 held at +infinity: an exchange whose upper input is known to
+// be +infinity cannot move anything and is dropped, which leaves 140 that sort 25 samples. (Had an
+// exchange a lower +infinity input and a finite upper one it would move the infinity; none has,
+// checked below, so the pruned network is exact.)
+template <bool kCount>
+constexpr int sort25_network(std::array<CompareExchange, 191>* out) {
+  constexpr int n = 32;
+  bool inf[n] = {};
+  for (int i = kSortN; i < n; ++i) inf[i] = true;
+  int m = 0;
+  for (int p = 1; p < n; p *= 2)
+    for (int k = p; k >= 1; k /= 2)
+      for (int j = k % p; j + k < n; j += 2 * k)
+        for (int i = 0; i < std::min(k, n - j - k); ++i)
+          if ((i + j) / (2 * p) == (i + j + k) / (2 * p)) {
+            const int a = i + j, b = i + j + k;
+            if (inf[b]) continue;
+            if (inf[a]) return -1;  // would move an infinity: not expressible as a plain pruning
+            if (!kCount) (*out)[std::size_t(m)] = CompareExchange{std::uint8_t(a), std::uint8_t(b)};
+            ++m;
+          }
+  return m;
+}
+constexpr int kSortCe = sort25_network<true>(nullptr);
+static_assert(kSortCe == 140, "the pruned 32-input Batcher network sorts 25 samples in 140 exchanges");
+constexpr std::array<CompareExchange, kSortCe> make_sort25() {
+  std::array<CompareExchange, 191> all{};
+  sort25_network<false>(&all);
+  std::array<CompareExchange, kSortCe> net{};
+  for (int i = 0; i < kSortCe; ++i) net[std::size_t(i)] = all[std::size_t(i)];
+  return net;
+}
+constexpr std::array<CompareExchange, kSortCe> kSort25 = make_sort25();
+
+struct SortedTables {
+  // dT[k] = T[k] - T[k - 1] for k = 1..25 (T: the n*log2 n table, Q16), split as 1024 hi + lo so
+  // that 25 terms of either part sum within uint16 (dT[25] < 2^19: hi <= 389, lo <= 1023).
+  SortV dt_lo, dt_hi;
+  std::uint32_t t32[kSortN + 1];  // T[n] (< 2^23)
+};
+
+// Output row y of eq. (14) for 5 x 5 blocks. pad: the bins (kSortSentinel where invalid) with 2
+// sentinel rows / columns around the image and kSortLanes more columns on the right, stride W; the
+// block of (x, y) is pad rows y..y+4, columns x..x+4.
+[[gnu::always_inline]] inline void sorted_entropy_row_body(const std::uint16_t* __restrict pad, int W, int w, int y,
+                                                           const SortedTables& t, const std::uint8_t* need_row,
+                                                           std::int32_t* __restrict o) {
+  const std::uint16_t* rows = pad + std::size_t(y) * std::size_t(W);
+  const SortV one = SortV{} + 1, zero = SortV{}, sent = SortV{} + kSortSentinel;
+  for (int x0 = 0; x0 < w; x0 += kSortLanes) {
+    SortV v[kSortN];
+#pragma GCC unroll 5
+    for (int ky = 0; ky < 5; ++ky)
+#pragma GCC unroll 5
+      for (int kx = 0; kx < 5; ++kx)
+        std::memcpy(&v[5 * ky + kx], rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx), sizeof(SortV));
+#pragma GCC unroll 140
+    for (int e = 0; e < kSortCe; ++e) {
+      const SortV a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
+      v[kSort25[std::size_t(e)].a] = a < b ? a : b;  // vpminuw
+      v[kSort25[std::size_t(e)].b] = a < b ? b : a;  // vpmaxuw
+    }
+    // p_i: 1 at a run's first sample, +1 along it; dT[p_i] summed over the valid samples.
+    SortV pos = one, n = zero, lo = zero, hi = zero;
+#pragma GCC unroll 25
+    for (int k = 0; k < kSortN; ++k) {
+      if (k > 0) pos = v[k] == v[k - 1] ? pos + one : one;
+      const auto ok = v[k] != sent;
+      n += ok ? one : zero;
+      lo += ok ? __builtin_shuffle(t.dt_lo, pos) : zero;
+      hi += ok ? __builtin_shuffle(t.dt_hi, pos) : zero;
+    }
+    std::uint16_t nb[kSortLanes], lb[kSortLanes], hb[kSortLanes];
+    std::memcpy(nb, &n, sizeof n);
+    std::memcpy(lb, &lo, sizeof lo);
+    std::memcpy(hb, &hi, sizeof hi);
+    // eq. (14)'s quotient floor((T[n] - sum + n / 2) / n), as in the sliding kernel. The dividend is
+    // < 2^23 and n <= 25, so the double quotient's relative error (<= 2^-53) cannot carry it across
+    // an integer: its truncation is the exact integer quotient (a loop that vectorises).
+    std::int32_t e[kSortLanes];
+    for (int i = 0; i < kSortLanes; ++i) {
+      const std::uint32_t nn = nb[i], sum_t = std::uint32_t(hb[i]) * 1024u + lb[i], tn = t.t32[nn];
+      const std::uint32_t a = tn - sum_t + nn / 2;
+      e[i] = nn == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(double(a) / double(nn == 0 ? 1 : nn));
+    }
+    const int m = std::min(kSortLanes, w - x0);
+    if (need_row)
+      for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
+    else
+      std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+  }
+}
+
+// The portable build (gcc lowers the 32-lane table lookup to scalar code: for tests and CPUs without
+// AVX-512BW, where kAuto takes the sliding kernel instead) and the AVX-512BW one.
+void sorted_entropy_row(const std::uint16_t* pad, int W, int w, int y, const SortedTables& t, const std::uint8_t* need_row,
+                        std::int32_t* o) {
+  sorted_entropy_row_body(pad, W, w, y, t, need_row, o);
+}
+#if defined(FS_HAVE_AVX512BW_DISPATCH)
+FS_TARGET_AVX512BW void sorted_entropy_row_avx512(const std::uint16_t* pad, int W, int w, int y, const SortedTables& t,
+                                                  const std::uint8_t* need_row, std::int32_t* o) {
+  sorted_entropy_row_body(pad, W, w, y, t, need_row, o);
+}
+#endif
+
+bool cpu_has_avx512bw() {
+#if defined(FS_HAVE_AVX512BW_DISPATCH)
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+                          __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
+                          __builtin_cpu_supports("avx512vl");
+  return has;
+#else
+  return false;
+#endif
+}
+
+ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const ImageU8* need) {
+  const int w = disp.width, h = disp.height, r = 2;
+  const int W = w + 2 * r + kSortLanes, H = h + 2 * r;
+  std::vector<std::uint16_t> pad(std::size_t(W) * std::size_t(H), kSortSentinel);
+  const auto dmax = static_cast<std::int16_t>(std::clamp(max_disparity, 0, 32766));
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < h; ++y) {
+    // the sliding kernel's bins; its -1 for an invalid pixel is kSortSentinel as uint16
+    bins_row(disp.row(y), reinterpret_cast<std::int16_t*>(pad.data() + std::size_t(y + r) * std::size_t(W) + r), w, dmax);
+  }
+  SortedTables t{};
+  const std::vector<std::uint64_t> T = detail::nlogn_table_q16(kSortN);
+  for (int k = 0; k <= kSortN; ++k) {
+    t.t32[k] = static_cast<std::uint32_t>(T[std::size_t(k)]);
+    const std::uint64_t dt = k >= 1 ? T[std::size_t(k)] - T[std::size_t(k - 1)] : 0;
+    t.dt_lo[k] = static_cast<std::uint16_t>(dt & 1023);
+    t.dt_hi[k] = static_cast<std::uint16_t>(dt >> 10);
+  }
+  const bool fast = cpu_has_avx512bw();
+  ImageI32 out(w, h, 0);
+#if defined(FS_HAVE_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* nr = need ? need->row(y) : nullptr;
+#if defined(FS_HAVE_AVX512BW_DISPATCH)
+    if (fast) {
+      sorted_entropy_row_avx512(pad.data(), W, w, y, t, nr, out.row(y));
+      continue;
+    }
+#endif
+    (void)fast;
+    sorted_entropy_row(pad.data(), W, w, y, t, nr, out.row(y));
+  }
+  return out;
+}
 }  // namespace
 
-ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need) {
+ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need, EntropyKernel kernel) {
+  if (window == 5 && (kernel == EntropyKernel::kSorted || (kernel == EntropyKernel::kAuto && cpu_has_avx512bw())))
+    return block_entropy_sorted(disp, max_disparity, need);
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
@@ -188,25 +369,65 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, cons
   return out;
 }
 
+// The rounded mean (2 s + n) / (2 n) of block_mean for one output row, from the row's column sums
+// (cs, cn: the block's rows summed per column, with r zero columns on either side). The block sum is
+// a sum of `window` shifted column sums (vectorises; no running sum along the row), and the quotient is
+// taken in double: the dividend is < 2^31 and the divisor 2 n <= 2 * 99^2, so the quotient's error
+// (< 2^31 * 2^-53 = 2^-22) is below its distance to the next integer when inexact (>= 1 / (2 n) >
+// 2^-15): its truncation is the exact integer quotient.
+// kWin > 0: the window as a constant (the loop over x vectorises); 0: any window (`window`).
+template <int kWin, typename Out>
+[[gnu::always_inline]] inline void mean_row_body(const std::int32_t* __restrict cs, const std::int32_t* __restrict cn,
+                                                 int w, int window, Out* __restrict o) {
+  const int win = kWin > 0 ? kWin : window;
+  for (int x = 0; x < w; ++x) {
+    std::int32_t s = 0, n = 0;
+    for (int k = 0; k < win; ++k) {
+      s += cs[x + k];
+      n += cn[x + k];
+    }
+    const double q = double(2 * s + n) / double(n > 0 ? 2 * n : 1);
+    o[x] = n > 0 ? static_cast<Out>(q) : Out{kInvalidDisp};
+  }
+}
+template <typename Out>
+[[gnu::always_inline]] inline void mean_row_dispatch(const std::int32_t* cs, const std::int32_t* cn, int w, int window,
+                                                     Out* o) {
+  switch (window) {
+    case 3: mean_row_body<3>(cs, cn, w, window, o); break;
+    case 5: mean_row_body<5>(cs, cn, w, window, o); break;
+    case 7: mean_row_body<7>(cs, cn, w, window, o); break;
+    case 9: mean_row_body<9>(cs, cn, w, window, o); break;
+    default: mean_row_body<0>(cs, cn, w, window, o); break;
+  }
+}
+FS_TARGET_CLONES_V4
+void mean_row(const std::int32_t* cs, const std::int32_t* cn, int w, int window, std::int16_t* o) {
+  mean_row_dispatch(cs, cn, w, window, o);
+}
+// The same means as int32 (ESR reads them through 32-bit gathers; there is no 16-bit gather).
+FS_TARGET_CLONES_V4
+void mean_row(const std::int32_t* cs, const std::int32_t* cn, int w, int window, std::int32_t* o) {
+  mean_row_dispatch(cs, cn, w, window, o);
+}
+
 // Mean of the valid disparities (Q4) in the clipped w x w block, rounded to nearest; kInvalidDisp
-// when the block has no valid pixel. Separable running sums: per output row, the column sums of
-// the block's rows (sum, count), then a window sliding along the row. int32 is exact: a block holds
-// at most w^2 <= 99^2 values <= 32767 (< 2^29).
-ImageI16 block_mean(const ImageI16& disp, int window) {
+// when the block has no valid pixel. Separable: per output row, the column sums of the block's rows
+// (sum, count; running down the rows), then mean_row. int32 is exact: a block holds at most w^2 <= 99^2
+// values <= 32767 (< 2^29).
+namespace {
+template <typename Out>
+Image<Out> block_mean_as(const ImageI16& disp, int window) {
   const int w = disp.width, h = disp.height, r = window / 2;
-  ImageI16 out(w, h, kInvalidDisp);
-  // The rounded mean (2 s + n) / (2 n) by a multiplication (ceil_reciprocals_2p32): exact while a * k < 2^32;
-  // here a <= 2 n * 32767 + n and k = 2 n, so a * k <= 131070 n^2 < 2^32 for n <= 181, i.e. windows up to 13;
-  // larger windows divide.
-  const std::int64_t nmax = std::int64_t(window) * window;
-  const bool reciprocal = 131070 * nmax * nmax < (std::int64_t(1) << 32);
-  const std::vector<std::uint64_t> recip = ceil_reciprocals_2p32(reciprocal ? std::uint64_t(2 * nmax) : 0);
-  const std::uint64_t* const rp = recip.data();
+  Image<Out> out(w, h, Out{kInvalidDisp});
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel
 #endif
   {
-    std::vector<std::int32_t> cs(std::size_t(w), 0), cn(std::size_t(w), 0);
+    // r zero columns on either side: the clipped block's missing columns add nothing
+    std::vector<std::int32_t> csv(std::size_t(w + 2 * r), 0), cnv(std::size_t(w + 2 * r), 0);
+    std::int32_t* cs = csv.data() + r;
+    std::int32_t* cn = cnv.data() + r;
     int have0 = 0, have1 = -1;  // rows [have0, have1] are in the column sums
 #if defined(FS_HAVE_OPENMP)
 #pragma omp for schedule(static)
@@ -214,8 +435,8 @@ ImageI16 block_mean(const ImageI16& disp, int window) {
     for (int y = 0; y < h; ++y) {
       const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
       if (y0 > have1 || y1 < have0 || y0 < have0) {  // first row of this thread's chunk: rebuild
-        std::fill(cs.begin(), cs.end(), 0);
-        std::fill(cn.begin(), cn.end(), 0);
+        std::fill(csv.begin(), csv.end(), 0);
+        std::fill(cnv.begin(), cnv.end(), 0);
         have0 = y0;
         have1 = y0 - 1;
       }
@@ -223,30 +444,55 @@ ImageI16 block_mean(const ImageI16& disp, int window) {
         const std::int16_t* d = disp.row(have0);
         for (int x = 0; x < w; ++x) {
           const std::int32_t v = d[x], ok = v != kInvalidDisp;
-          cs[std::size_t(x)] -= ok ? v : 0;
-          cn[std::size_t(x)] -= ok;
+          cs[x] -= ok ? v : 0;
+          cn[x] -= ok;
         }
       }
-      for (; have1 < y1; ) {  // rows entering the block
+      for (; have1 < y1;) {  // rows entering the block
         const std::int16_t* d = disp.row(++have1);
         for (int x = 0; x < w; ++x) {
           const std::int32_t v = d[x], ok = v != kInvalidDisp;
-          cs[std::size_t(x)] += ok ? v : 0;
-          cn[std::size_t(x)] += ok;
+          cs[x] += ok ? v : 0;
+          cn[x] += ok;
         }
       }
-      std::int32_t s = 0, n = 0;
-      for (int x = 0; x <= std::min(w - 1, r - 1); ++x) { s += cs[std::size_t(x)]; n += cn[std::size_t(x)]; }
-      std::int16_t* o = out.row(y);
-      for (int x = 0; x < w; ++x) {
-        if (x + r < w) { s += cs[std::size_t(x + r)]; n += cn[std::size_t(x + r)]; }
-        if (x - r - 1 >= 0) { s -= cs[std::size_t(x - r - 1)]; n -= cn[std::size_t(x - r - 1)]; }
-        if (n > 0)
-          o[x] = static_cast<std::int16_t>(reciprocal ? (std::uint64_t(2 * s + n) * rp[2 * n]) >> 32 : (2 * s + n) / (2 * n));
-      }
+      mean_row(cs - r, cn - r, w, window, out.row(y));
     }
   }
   return out;
+}
+}  // namespace
+
+ImageI16 block_mean(const ImageI16& disp, int window) { return block_mean_as<std::int16_t>(disp, window); }
+
+// eq. (15) for one row: a needed left pixel (valid, partner x - d inside the image) whose block
+// entropy differs from its partner's by more than tau takes the block mean of the lower-entropy side,
+// when that block has a valid pixel. Branch-free (the partner's entropy and mean are gathers), so it
+// vectorises; the partner index is clamped into the row for the pixels that are not needed.
+FS_TARGET_CLONES_V4
+void esr_row(const std::int16_t* __restrict d, const std::uint8_t* __restrict need, const std::int32_t* __restrict el,
+             const std::int32_t* __restrict er, const std::int32_t* __restrict ml, const std::int32_t* __restrict mr,
+             int w, std::int64_t tau, std::int16_t* __restrict out, std::uint8_t* __restrict rep) {
+  const auto tau32 = static_cast<std::int32_t>(std::min<std::int64_t>(tau, std::int64_t(1) << 30));
+  constexpr int kChunk = 256;
+  std::int32_t idx[kChunk];  // the partners of a chunk first: gathers through an index array vectorise
+  for (int x0 = 0; x0 < w; x0 += kChunk) {
+    const int m = std::min(kChunk, w - x0);
+    for (int i = 0; i < m; ++i) {
+      const int xp = partner_x(x0 + i, d[x0 + i]);
+      idx[i] = std::min(std::max(xp, 0), w - 1);
+    }
+    for (int i = 0; i < m; ++i) {
+      const int x = x0 + i, xr = idx[i];
+      const std::int32_t a = el[x], b = er[xr];
+      const std::int32_t mlx = ml[x], mrx = mr[xr];  // every load unconditional: the loop if-converts
+      const std::int32_t diff = a > b ? a - b : b - a;  // entropies are in [0, log2(w^2)] Q16: no overflow
+      const std::int32_t mean = a < b ? mlx : mrx;
+      const bool take = (need[x] != 0) & (diff > tau32) & (mean != kInvalidDisp);
+      out[x] = take ? static_cast<std::int16_t>(mean) : d[x];
+      rep[x] = take ? 1 : 0;
+    }
+  }
 }
 
 ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& disp_right, const EsrParams& p,
@@ -278,28 +524,20 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
     }
   }
   ImageI32 El, Er;
-  ImageI16 Ml, Mr;
+  ImageI32 Ml, Mr;
   detail::run_pair(
-      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l); Ml = block_mean(disp_lr, p.window); },
-      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r); Mr = block_mean(disp_right, p.window); });
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l); Ml = block_mean_as<std::int32_t>(disp_lr, p.window); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r); Mr = block_mean_as<std::int32_t>(disp_right, p.window); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
-  ImageI16 out = disp_lr;
-  if (replaced) *replaced = ImageU8(w, h, 0);
+  ImageI16 out(w, h);
+  ImageU8 rep_scratch;
+  ImageU8& rep = replaced ? *replaced : rep_scratch;
+  rep = ImageU8(w, h, 0);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      if (need_l.at(x, y) == 0) continue;  // invalid, or its partner outside the image
-      const int xr = partner_x(x, disp_lr.at(x, y));
-      const std::int64_t el = El.at(x, y), er = Er.at(xr, y);
-      if (std::llabs(el - er) <= tau) continue;  // eq. (15), "otherwise"
-      const std::int16_t m = el < er ? Ml.at(x, y) : Mr.at(xr, y);
-      if (m == kInvalidDisp) continue;
-      out.at(x, y) = m;
-      if (replaced) replaced->at(x, y) = 1;
-    }
-  }
+  for (int y = 0; y < h; ++y)
+    esr_row(disp_lr.row(y), need_l.row(y), El.row(y), Er.row(y), Ml.row(y), Mr.row(y), w, tau, out.row(y), rep.row(y));
   return out;
 }
 
