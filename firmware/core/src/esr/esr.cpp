@@ -83,6 +83,22 @@ using SortV = std::uint16_t __attribute__((vector_size(2 * kSortLanes)));
 constexpr std::uint16_t kSortSentinel = 0xFFFF;
 static_assert(static_cast<std::uint16_t>(std::int16_t{-1}) == kSortSentinel, "bins_row marks an invalid pixel -1");
 
+// The helpers below take and return vectors by value; they are always inlined, so gcc's ABI note
+// (-Wpsabi: a vector argument's passing differs between ISA levels) does not concern them.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+// table[idx] per lane (idx < 32): one vpermw with AVX-512BW. clang has no variable __builtin_shuffle.
+[[gnu::always_inline]] inline SortV lookup32(SortV table, SortV idx) {
+#if defined(__clang__)
+  SortV out{};
+  for (int i = 0; i < kSortLanes; ++i) out[i] = table[idx[i] & (kSortLanes - 1)];
+  return out;
+#else
+  return __builtin_shuffle(table, idx);
+#endif
+}
+
 struct CompareExchange {
   std::uint8_t a, b;  // after it, sample a <= sample b
 };
@@ -157,8 +173,8 @@ struct SortedTables {
       if (k > 0) pos = v[k] == v[k - 1] ? pos + one : one;
       const auto ok = v[k] != sent;
       n += ok ? one : zero;
-      lo += ok ? __builtin_shuffle(t.dt_lo, pos) : zero;
-      hi += ok ? __builtin_shuffle(t.dt_hi, pos) : zero;
+      lo += ok ? lookup32(t.dt_lo, pos) : zero;
+      hi += ok ? lookup32(t.dt_hi, pos) : zero;
     }
     std::uint16_t nb[kSortLanes], lb[kSortLanes], hb[kSortLanes];
     std::memcpy(nb, &n, sizeof n);
