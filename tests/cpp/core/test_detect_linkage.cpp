@@ -27,6 +27,14 @@ DetectParams isolated() {  // only fragment merging acts
   p.merge_edge_rel_disparity = 0.0;
   p.merge_occluded_max_gap_px = 0;
   p.contain_min_inside = 0.0;
+  // plain single linkage and no later rules (the defaults since session 49 have them on; the tests below
+  // switch each on where they test it)
+  p.merge_gap_vertical_px = 8;
+  p.merge_bridge_max_px = 0;
+  p.merge_bridge_max_overlap = 1.0;
+  p.seam_min_step = 0.0;
+  p.inside_drop_min_share = 0.0;
+  p.side_face_max_rel = 0.0;
   return p;
 }
 

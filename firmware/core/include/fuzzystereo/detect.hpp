@@ -64,9 +64,9 @@ struct DetectParams {
   double sky_upper_fraction = 0.5;     // rows above this fraction of the height (Fraction, or fallback)
   std::array<HsvRange, 3> sky_ranges{};  // blue sky, overcast/bright grey, sunset (docs/detection.md)
   double sky_max_disparity_px = 0.0;   // >0: a pixel with a valid disparity above this is never sky
-  double sky_max_texture = 0.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
-                                     // sky (session 8; grey levels 0..255; 6 measured, off by default: it
-                                     // caused closed-loop collisions, docs/results-detection.md "Session 8")
+  double sky_max_texture = 6.0;       // >0: a pixel whose grey-level std over the (2r+1)^2 window exceeds this is never
+                                     // sky (session 8; grey levels 0..255; 0 = off; on since session 49,
+                                     // docs/results-detection.md "Session 49")
   int sky_texture_radius = 2;        // ... r [px]
   // ---- k-means (eq. 22-23) ----
   int kmeans_k = 6;
@@ -82,16 +82,16 @@ struct DetectParams {
   double cc_max_rel_step = 0.05;   // ... and by <= this share of the larger disparity (0 = off)
   double cc_min_step_px = 0.25;    // ... the relative limit never goes below this [px]
   int merge_gap_px = 8;           // components whose boxes grown by this overlap ... (-1 = no merging)
-  int merge_gap_vertical_px = 8;  // ... in y: the vertical growth, max(this, merge_gap_px) (tall obstacles cut in height)
+  int merge_gap_vertical_px = 16;  // ... in y: the vertical growth, max(this, merge_gap_px) (tall obstacles cut in height)
   double merge_max_rel_disparity = 0.1;  // ... and whose medians differ <= this share of the larger merge
   double merge_group_max_rel = 0.0;   // complete linkage: a merged group's member medians span <= this share of the
                                    // largest (session 8; 0 = single linkage, no group limit: the default,
                                    // see docs/results-detection.md "Session 8" for the trade-off)
   bool merge_attach = true;        // with complete linkage: each group then joins the touching larger group of
                                    // nearest median within merge_max_rel_disparity (one step, no chains)
-  int merge_bridge_max_px = 0;     // single linkage: components with fewer pixels than this join at most one
+  int merge_bridge_max_px = 500;     // single linkage: components with fewer pixels than this join at most one
                                    // group of larger ones (no chains through small fragments; session 10, 0 = off)
-  double merge_bridge_max_overlap = 1.0;  // ... refused only between large ones side by side: column overlap <= this
+  double merge_bridge_max_overlap = 0.5;  // ... refused only between large ones side by side: column overlap <= this
                                          // share of the narrower box
   int merge_occluded_max_gap_px = 200;  // same-depth components on both sides of nearer ones merge across
                                       // a gap up to this wide (0 = off)
@@ -106,7 +106,7 @@ struct DetectParams {
   int neck_min_px = 100;           // ... and each side of the cut keeps at least this many pixels
   double neck_foot_share = 0.0;    // ... and (> 0) the thin columns' pixels all lie in this lowest share of
                                    // the box rows (a strip at the feet); 0 = at any height
-  double seam_min_step = 0.0;      // cut an obstacle where the mean chromaticity of its columns changes by at
+  double seam_min_step = 0.08;      // cut an obstacle where the mean chromaticity of its columns changes by at
                                    // least this (max over r, g, b of c / (r + g + b), regularised) between the
                                    // seam_window columns on each side (two touching obstacles; session 33; 0 = off)
   int seam_window_px = 8;          // ... columns compared on each side of a seam [px]
@@ -146,15 +146,15 @@ struct DetectParams {
                                    // the default: 0.5 cost closed-loop safe stops, docs/results-detection.md)
   double below_road_drop_share = 0.5;  // obstacles with at least this share of their pixels below the road at
                                    // their own depth (beyond the road band) are dropped (0 = off)
-  double inside_drop_min_share = 0.0;  // a farther obstacle whose box lies at least this share inside the box of a
-                                   // larger obstacle nearer by > merge_max_rel_disparity ... (session 14; 0 = off,
-                                   // the default: 0.85 measured, a seed-11 ring scenario collided with it on)
+  double inside_drop_min_share = 0.85;  // a farther obstacle whose box lies at least this share inside the box of a
+                                   // larger obstacle nearer by > merge_max_rel_disparity ... (session 14; 0 = off;
+                                   // 0.85 since session 49)
   double inside_drop_min_ring = 0.25;  // ... and whose surrounding band holds at least this share of the nearer
                                    // one's pixels is dropped (a blob of background disparity in its face)
   int inside_drop_ring_px = 6;     // ... the band: this many pixels around the farther obstacle's box [px]
-  double side_face_max_rel = 0.0;  // a narrow obstacle beside a larger one and at most this share farther (Z ratio - 1)
+  double side_face_max_rel = 0.35;  // a narrow obstacle beside a larger one and at most this share farther (Z ratio - 1)
                                    // is its side face: it joins it (session 33; 0 = off)
-  double side_face_max_width = 0.5;  // ... narrow: its box at most this share of the larger one's width
+  double side_face_max_width = 0.2;  // ... narrow: its box at most this share of the larger one's width
   double side_face_min_rows = 0.8;   // ... at least this share of its box rows lie within the larger one's rows
   int side_face_max_gap_px = 2;    // ... and the boxes touch: at most this many columns apart (overlaps allowed, its
                                    // centre column outside the larger box) [px]
