@@ -38,6 +38,23 @@ void expect_same(const ImageU8& a, const ImageU8& b, const char* what) {
   EXPECT_EQ(diff, 0u) << what;
 }
 
+TEST(DetectStages, DisparityBinsIsTheLargestRoundedValidDisparityPlusOne) {
+  // Maps with invalid pixels, other negative values (not estimates), values at a rounding half-step and
+  // empty or all-invalid maps, against the definition.
+  std::mt19937 rng(5u);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int w = 1 + trial % 13, h = 1 + trial % 7;
+    std::uniform_int_distribution<int> u(-40, 16 * (1 + trial));
+    ImageI16 d(w, h);
+    for (auto& q : d.data) q = trial % 10 == 0 ? kInvalidDisp : static_cast<std::int16_t>(u(rng));
+    int want = 0;
+    for (const std::int16_t q : d.data)
+      if (q != kInvalidDisp && q >= 0) want = std::max(want, (q + kDispScale / 2) >> kDispShift);
+    ASSERT_EQ(detect::disparity_bins(d), want + 1) << "trial " << trial;
+  }
+  EXPECT_EQ(detect::disparity_bins(ImageI16()), 1);
+}
+
 TEST(DetectStages, VDisparityMatchesReference) {
   for (const Case& c : kCases) {
     const auto s = scene_for(c);
