@@ -54,6 +54,18 @@
 
 namespace fs::detail {
 
+// The CPU runs FS_TARGET_AVX512BW code (x86-64-v4: AVX-512 F, BW, CD, DQ, VL); checked once.
+inline bool cpu_has_avx512bw() {
+#if defined(FS_HAVE_AVX512BW_DISPATCH)
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+                          __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
+                          __builtin_cpu_supports("avx512vl");
+  return has;
+#else
+  return false;
+#endif
+}
+
 inline int resolve_threads(int requested) {
 #if defined(FS_HAVE_OPENMP)
   return requested > 0 ? requested : omp_get_max_threads();

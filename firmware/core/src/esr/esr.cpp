@@ -210,17 +210,6 @@ FS_TARGET_AVX512BW void sorted_entropy_row_avx512(const std::uint16_t* pad, int 
 }
 #endif
 
-bool cpu_has_avx512bw() {
-#if defined(FS_HAVE_AVX512BW_DISPATCH)
-  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-                          __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
-                          __builtin_cpu_supports("avx512vl");
-  return has;
-#else
-  return false;
-#endif
-}
-
 ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const ImageU8* need) {
   const int w = disp.width, h = disp.height, r = 2;
   const int W = w + 2 * r + kSortLanes, H = h + 2 * r;
@@ -241,7 +230,7 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
     t.dt_lo[k] = static_cast<std::uint16_t>(dt & 1023);
     t.dt_hi[k] = static_cast<std::uint16_t>(dt >> 10);
   }
-  const bool fast = cpu_has_avx512bw();
+  const bool fast = detail::cpu_has_avx512bw();
   ImageI32 out(w, h, 0);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
@@ -262,7 +251,7 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
 }  // namespace
 
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need, EntropyKernel kernel) {
-  if (window == 5 && (kernel == EntropyKernel::kSorted || (kernel == EntropyKernel::kAuto && cpu_has_avx512bw())))
+  if (window == 5 && (kernel == EntropyKernel::kSorted || (kernel == EntropyKernel::kAuto && detail::cpu_has_avx512bw())))
     return block_entropy_sorted(disp, max_disparity, need);
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
