@@ -52,6 +52,15 @@
 #define FS_NO_UNROLL_AND_JAM
 #endif
 
+// A register-blocked kernel's accumulator arrays zeroed by a loop, not turned into a memset: gcc
+// expands a memset of a few hundred bytes into `rep stos`, whose start-up cost was ~10 % of the
+// cost stage's block loops at KITTI's segment sizes (the arrays live in registers after it).
+#if defined(__GNUC__) && !defined(__clang__)
+#define FS_NO_MEMSET_PATTERNS __attribute__((optimize("no-loop-unroll-and-jam", "no-tree-loop-distribute-patterns")))
+#else
+#define FS_NO_MEMSET_PATTERNS
+#endif
+
 namespace fs::detail {
 
 // The CPU runs FS_TARGET_AVX512BW code (x86-64-v4: AVX-512 F, BW, CD, DQ, VL); checked once.

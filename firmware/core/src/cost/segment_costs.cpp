@@ -115,18 +115,21 @@ struct SegPixel {
 // l*r and |gl - gr| (n <= kFlushPixels). The per-pixel terms are added in 16-bit lanes, so no lane
 // is widened per pixel (widening is a cross-lane shuffle on x86 and the bottleneck of the loop):
 //   l*r (<= 65025, exact in uint16) is split as 256*hi + lo, hi = p >> 8 <= 254, lo = p & 255;
-//   hi, lo and |gl - gr| (<= 1443) are summed in uint16 over groups of kGroup16 pixels
-//   (kGroup16 * 1443 < 2^16), and each group's sums are widened once into the int32 totals
+//   hi, l*r itself (modulo 2^16) and |gl - gr| (<= 1443) are summed in uint16 over groups of
+//   kGroup16 pixels (kGroup16 * 1443 < 2^16), sum lo is recovered per group from the first two
+//   (see below), and each group's sums are widened once into the int32 totals
 //   (sum l*r = 256 * sum hi + sum lo; n <= kFlushPixels keeps the totals < 2^31).
 constexpr int kGroup16 = 45;  // 45 * 1443 = 64935 < 65536 (and 45 * 255 for hi, lo)
 
-FS_TARGET_CLONES_V4 FS_NO_UNROLL_AND_JAM
+FS_TARGET_CLONES_V4 FS_NO_MEMSET_PATTERNS
 void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t* __restrict val,
                       const std::int16_t* __restrict grad, std::int32_t* __restrict slr, std::int32_t* __restrict sg) {
-  std::int32_t a[kBlock] = {}, g[kBlock] = {};
+  std::int32_t a[kBlock], g[kBlock];
+  for (int j = 0; j < kBlock; ++j) a[j] = g[j] = 0;
   for (int i0 = 0; i0 < n; i0 += kGroup16) {
     const int i1 = std::min(n, i0 + kGroup16);
-    std::uint16_t hi[kBlock] = {}, lo[kBlock] = {}, g16[kBlock] = {};
+    std::uint16_t hi[kBlock], wrap[kBlock], g16[kBlock];
+    for (int j = 0; j < kBlock; ++j) hi[j] = wrap[j] = g16[j] = 0;
     for (int i = i0; i < i1; ++i) {
       const std::uint16_t* o = val + px[i].off;
       const std::int16_t* og = grad + px[i].off;
@@ -135,12 +138,15 @@ void accumulate_block(const SegPixel* __restrict px, int n, const std::uint16_t*
       for (int j = 0; j < kBlock; ++j) {
         const auto prod = static_cast<std::uint16_t>(l * o[j]);
         hi[j] = static_cast<std::uint16_t>(hi[j] + (prod >> 8));
-        lo[j] = static_cast<std::uint16_t>(lo[j] + (prod & 0xFF));
+        wrap[j] = static_cast<std::uint16_t>(wrap[j] + prod);  // sum of l*r modulo 2^16
         g16[j] = static_cast<std::uint16_t>(g16[j] + static_cast<std::uint16_t>(std::abs(static_cast<std::int16_t>(gl - og[j]))));
       }
     }
+    // sum lo = sum (p & 255) < kGroup16 * 256 < 2^16, and sum lo = sum p - 256 sum hi, so it is
+    // (wrap - 256 hi) modulo 2^16 exactly: the loop needs no mask per pixel.
     for (int j = 0; j < kBlock; ++j) {
-      a[j] += (std::int32_t(hi[j]) << 8) + lo[j];
+      const auto lo = static_cast<std::uint16_t>(wrap[j] - static_cast<std::uint16_t>(hi[j] << 8));
+      a[j] += (std::int32_t(hi[j]) << 8) + lo;
       g[j] += g16[j];
     }
   }
@@ -242,11 +248,12 @@ struct RunSpan {
   std::int32_t lo, hi;
 };
 
-FS_TARGET_CLONES_V4 FS_NO_UNROLL_AND_JAM
+FS_TARGET_CLONES_V4 FS_NO_MEMSET_PATTERNS
 void accumulate_runs(const RunSpan* __restrict runs, int nruns, int D, std::int32_t* __restrict sr,
                      std::int32_t* __restrict srr) {
   for (int d0 = 0; d0 < D; d0 += kBlock) {
-    std::uint32_t a[kBlock] = {}, b[kBlock] = {};
+    std::uint32_t a[kBlock], b[kBlock];
+    for (int j = 0; j < kBlock; ++j) a[j] = b[j] = 0;
     for (int i = 0; i < nruns; ++i) {
       const std::uint32_t* __restrict ph = runs[i].pre + runs[i].hi + d0;
       const std::uint32_t* __restrict pl = runs[i].pre + runs[i].lo + d0;
