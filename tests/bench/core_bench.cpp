@@ -150,7 +150,7 @@ void BM_Esr(benchmark::State& st) {
 BENCHMARK(BM_Esr)->Unit(benchmark::kMillisecond);
 
 // First arg 0: the left map after eq. (13); 1: the right-reference WTA map (no eq. (13) holes), ESR's
-// other entropy image. Second arg: the kernel (0 kAuto, 1 kSliding, 2 kSorted; fs::EntropyKernel).
+// other entropy image. Second arg: the kernel (0 kAuto, 1 kSliding, 2 kSorted, 3 kSortedPortable; fs::EntropyKernel).
 void BM_BlockEntropy(benchmark::State& st) {
   const auto p = params();
   const fs::Matcher m(p, fs::load_fis_definition(""));
@@ -159,7 +159,7 @@ void BM_BlockEntropy(benchmark::State& st) {
   const auto kernel = static_cast<fs::EntropyKernel>(st.range(1));
   for (auto _ : st) benchmark::DoNotOptimize(fs::block_entropy(d, p.esr.window, kD, nullptr, kernel));
 }
-BENCHMARK(BM_BlockEntropy)->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BlockEntropy)->ArgsProduct({{0, 1}, {0, 1, 2}})->Unit(benchmark::kMillisecond);
 
 void BM_Densify(benchmark::State& st) {
   const auto p = params();

@@ -37,6 +37,10 @@
 // (__builtin_cpu_supports) and otherwise keeps its scalar sliding-window kernel.
 #define FS_TARGET_AVX512BW __attribute__((target("arch=x86-64-v4")))
 #define FS_HAVE_AVX512BW_DISPATCH 1
+// AVX2 for kernels written with its intrinsics (<immintrin.h>), picked at run time with
+// cpu_has_avx2(): ESR's sorted block entropy on CPUs without AVX-512BW (vpshufb table lookups).
+#define FS_TARGET_AVX2 __attribute__((target("avx2")))
+#define FS_HAVE_AVX2_DISPATCH 1
 #else
 #define FS_TARGET_CLONES_V3
 #define FS_TARGET_CLONES
@@ -69,6 +73,16 @@ inline bool cpu_has_avx512bw() {
   static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
                           __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
                           __builtin_cpu_supports("avx512vl");
+  return has;
+#else
+  return false;
+#endif
+}
+
+// The CPU runs FS_TARGET_AVX2 code; checked once.
+inline bool cpu_has_avx2() {
+#if defined(FS_HAVE_AVX2_DISPATCH)
+  static const bool has = __builtin_cpu_supports("avx2");
   return has;
 #else
   return false;

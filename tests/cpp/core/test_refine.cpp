@@ -285,7 +285,8 @@ TEST(Esr, BothEntropyKernelsMatchTheReferenceOnOddSizes) {
   // recomputation: widths below, at and across multiples of its 32 lanes, 1-4 rows (blocks clipped
   // above and below at once), invalid pixels, bins clamped at max_disparity, need masks, and
   // segment-like patches (long runs of equal bins: the sorted runs' positions reach 25). kSorted runs
-  // its AVX-512BW build where the CPU has it and its portable build otherwise (aarch64, qemu).
+  // its AVX-512BW or AVX2 build where the CPU has one (portable otherwise: aarch64, qemu), and
+  // kSortedPortable the portable one everywhere.
   for (auto [w, h, maxd, invalid_pct, block] : {std::tuple{1, 1, 20, 0, 1}, {5, 2, 20, 10, 1}, {31, 3, 20, 10, 3},
                                                  {32, 4, 6, 20, 2}, {33, 17, 20, 5, 4}, {97, 23, 12, 10, 7},
                                                  {64, 9, 40, 60, 3}, {70, 13, 3, 0, 9}}) {
@@ -299,7 +300,8 @@ TEST(Esr, BothEntropyKernelsMatchTheReferenceOnOddSizes) {
       ImageU8 need(w, h, 0);
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) need.at(x, y) = u(rng) < 50 ? 1 : 0;
-      for (const EntropyKernel k : {EntropyKernel::kSorted, EntropyKernel::kSliding, EntropyKernel::kAuto}) {
+      for (const EntropyKernel k : {EntropyKernel::kSorted, EntropyKernel::kSortedPortable, EntropyKernel::kSliding,
+                                    EntropyKernel::kAuto}) {
         const ImageI32 full = block_entropy(d, 5, maxd, nullptr, k), part = block_entropy(d, 5, maxd, &need, k);
         ImageI16 clamped = d;  // the reference clamps bins at max_disparity as both kernels do
         for (auto& v : clamped.data)

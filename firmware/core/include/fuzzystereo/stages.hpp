@@ -168,9 +168,11 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
 // Two kernels give the same integers: kSliding (the histogram sliding along the row, any window)
 // and kSorted (5 x 5 blocks only: each block's 25 bins sorted by a compare-exchange network, 32
 // pixels at a time, and the counts read off the sorted runs; docs/algorithm.md 6 "Sorted block
-// entropy"). kAuto takes kSorted for window 5 on CPUs with AVX-512BW, where it is ~3x faster, and
-// kSliding otherwise; kSorted elsewhere runs its portable (slow) build, for tests.
-enum class EntropyKernel { kAuto, kSliding, kSorted };
+// entropy"). kSorted runs its fastest build for the CPU (AVX-512BW; AVX2 when max_disparity <= 254;
+// else the portable one); kSortedPortable always the portable one (gcc vector types, a scalar table
+// lookup: for tests). kAuto takes kSorted for window 5 where an AVX-512BW or AVX2 build runs, kSliding
+// otherwise.
+enum class EntropyKernel { kAuto, kSliding, kSorted, kSortedPortable };
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need = nullptr,
                        EntropyKernel kernel = EntropyKernel::kAuto);
 // Mean disparity (Q4) of the valid pixels of a w x w block around every pixel (integral image).

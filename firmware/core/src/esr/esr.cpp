@@ -16,7 +16,8 @@
 // position of sample i within its run of equal bins. A compare-exchange network sorts the 25 bins of
 // 32 neighbouring blocks at once (uint16 lanes, min / max), a scan gives every p_i, and dT[p_i] is a
 // 32-entry table lookup per lane; no branch depends on the data. Same integers as the sliding
-// kernel; AVX-512BW only (vpermw), picked at run time.
+// kernel. Builds: AVX-512BW (32 lanes, vpermw), AVX2 (16 lanes, vpshufb on byte planes of the
+// table), picked at run time, and a portable one (gcc vector types; its lookup is scalar code).
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -26,6 +27,10 @@
 
 #include "fuzzystereo/stages.hpp"
 #include "internal.hpp"
+
+#if defined(FS_HAVE_AVX2_DISPATCH)
+#include <immintrin.h>
+#endif
 
 namespace fs {
 
@@ -142,8 +147,39 @@ struct SortedTables {
   // dT[k] = T[k] - T[k - 1] for k = 1..25 (T: the n*log2 n table, Q16), split as 1024 hi + lo so
   // that 25 terms of either part sum within uint16 (dT[25] < 2^19: hi <= 389, lo <= 1023).
   SortV dt_lo, dt_hi;
+  // The same dT as three byte planes, dT = b0 + 256 b1 + 65536 b2 (b2 <= 7; 25 terms of a plane sum
+  // within uint16), each plane as two 16-entry vpshufb tables (entries 0..15, 16..31), repeated in
+  // both 128-bit halves: the AVX2 build's lookup.
+  alignas(32) std::uint8_t plane_a[3][32];
+  alignas(32) std::uint8_t plane_b[3][32];
   std::uint32_t t32[kSortN + 1];  // T[n] (< 2^23)
 };
+
+// Whether any pixel of [x0, x0 + m) is needed (need_row = nullptr: all are).
+inline bool any_needed(const std::uint8_t* need_row, int x0, int m) {
+  if (!need_row) return true;
+  std::uint8_t any = 0;
+  for (int i = 0; i < m; ++i) any |= need_row[x0 + i];
+  return any != 0;
+}
+
+// eq. (14)'s quotient floor((T[n] - sum + n / 2) / n) for m lanes (the sliding kernel's integers),
+// stored where needed. The dividend is < 2^23 and n <= 25, so the double quotient's relative error
+// (<= 2^-53) cannot carry it across an integer: its truncation is the exact integer quotient.
+[[gnu::always_inline]] inline void store_entropies(const std::uint16_t* nb, const std::uint32_t* sum, int lanes, int m,
+                                                   const SortedTables& t, const std::uint8_t* need_row, int x0,
+                                                   std::int32_t* __restrict o) {
+  std::int32_t e[kSortLanes];
+  for (int i = 0; i < lanes; ++i) {
+    const std::uint32_t nn = nb[i], sum_t = sum[i], tn = t.t32[nn];
+    const std::uint32_t a = tn - sum_t + nn / 2;
+    e[i] = nn == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(double(a) / double(nn == 0 ? 1 : nn));
+  }
+  if (need_row)
+    for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
+  else
+    std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+}
 
 // Output row y of eq. (14) for 5 x 5 blocks. pad: the bins (kSortSentinel where invalid) with 2
 // sentinel rows / columns around the image and kSortLanes more columns on the right, stride W; the
@@ -154,6 +190,11 @@ struct SortedTables {
   const std::uint16_t* rows = pad + std::size_t(y) * std::size_t(W);
   const SortV one = SortV{} + 1, zero = SortV{}, sent = SortV{} + kSortSentinel;
   for (int x0 = 0; x0 < w; x0 += kSortLanes) {
+    const int m = std::min(kSortLanes, w - x0);
+    if (!any_needed(need_row, x0, m)) {
+      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
+      continue;
+    }
     SortV v[kSortN];
 #pragma GCC unroll 5
     for (int ky = 0; ky < 5; ++ky)
@@ -180,20 +221,9 @@ struct SortedTables {
     std::memcpy(nb, &n, sizeof n);
     std::memcpy(lb, &lo, sizeof lo);
     std::memcpy(hb, &hi, sizeof hi);
-    // eq. (14)'s quotient floor((T[n] - sum + n / 2) / n), as in the sliding kernel. The dividend is
-    // < 2^23 and n <= 25, so the double quotient's relative error (<= 2^-53) cannot carry it across
-    // an integer: its truncation is the exact integer quotient (a loop that vectorises).
-    std::int32_t e[kSortLanes];
-    for (int i = 0; i < kSortLanes; ++i) {
-      const std::uint32_t nn = nb[i], sum_t = std::uint32_t(hb[i]) * 1024u + lb[i], tn = t.t32[nn];
-      const std::uint32_t a = tn - sum_t + nn / 2;
-      e[i] = nn == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(double(a) / double(nn == 0 ? 1 : nn));
-    }
-    const int m = std::min(kSortLanes, w - x0);
-    if (need_row)
-      for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
-    else
-      std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+    std::uint32_t sum[kSortLanes];
+    for (int i = 0; i < kSortLanes; ++i) sum[i] = std::uint32_t(hb[i]) * 1024u + lb[i];
+    store_entropies(nb, sum, kSortLanes, m, t, need_row, x0, o);
   }
 }
 
@@ -210,17 +240,136 @@ FS_TARGET_AVX512BW void sorted_entropy_row_avx512(const std::uint16_t* pad, int 
 }
 #endif
 
-ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const ImageU8* need) {
+#if defined(FS_HAVE_AVX2_DISPATCH)
+// The AVX2 build, for bins <= 254 (max_disparity <= 254): 32 blocks at a time in the uint8 lanes of a
+// ymm register (sentinel 0xFF), the same network and run scan, and dT[p_i] by vpshufb from three
+// byte planes of the table (SortedTables::plane_a/b). The index byte is p_i (<= 25), | 0x80 for an
+// invalid sample; the plane lookup or(pshufb(A, idx +sat 0x70), pshufb(B, idx -sat 0x10)) reads
+// A[p] for p < 16 (0x70 + p keeps bit 7 clear), B[p - 16] for p >= 16 and 0 for an invalid sample
+// (bit 7 set after either saturating step). Planes 0 and 1 are summed in uint16 (25 * 255 < 2^16),
+// plane 2 (<= 7) in uint8 (25 * 7 < 2^8).
+using SortV8 = std::uint8_t __attribute__((vector_size(32)));
+constexpr int kAvx2Lanes = 32;
+
+// eq. (14)'s quotient for 8 lanes (epi32 n, sum_t): floor((T[n] - sum + n / 2) / n), 0 where n = 0
+// or T[n] <= sum; in double as store_entropies (exact for these ranges).
+FS_TARGET_AVX2 [[gnu::always_inline]] inline __m256i entropy8(__m256i n, __m256i sum, const std::uint32_t* t32) {
+  const __m256i tn = _mm256_i32gather_epi32(reinterpret_cast<const int*>(t32), n, 4);
+  const __m256i a = _mm256_add_epi32(_mm256_sub_epi32(tn, sum), _mm256_srli_epi32(n, 1));
+  const __m256i nz = _mm256_max_epi32(n, _mm256_set1_epi32(1));
+  const __m256d q0 = _mm256_div_pd(_mm256_cvtepi32_pd(_mm256_castsi256_si128(a)), _mm256_cvtepi32_pd(_mm256_castsi256_si128(nz)));
+  const __m256d q1 = _mm256_div_pd(_mm256_cvtepi32_pd(_mm256_extracti128_si256(a, 1)),
+                                   _mm256_cvtepi32_pd(_mm256_extracti128_si256(nz, 1)));
+  const __m256i q = _mm256_set_m128i(_mm256_cvttpd_epi32(q1), _mm256_cvttpd_epi32(q0));
+  // zero where n == 0 or T[n] <= sum (T[n] < 2^23 and sum < 2^23: signed compares are exact)
+  const __m256i keep = _mm256_andnot_si256(_mm256_cmpeq_epi32(n, _mm256_setzero_si256()), _mm256_cmpgt_epi32(tn, sum));
+  return _mm256_and_si256(q, keep);
+}
+
+FS_TARGET_AVX2 void sorted_entropy_row_avx2(const std::uint8_t* __restrict pad, int W, int w, int y,
+                                            const SortedTables& t, const std::uint8_t* need_row,
+                                            std::int32_t* __restrict o) {
+  const std::uint8_t* rows = pad + std::size_t(y) * std::size_t(W);
+  __m256i ta[3], tb[3];
+  for (int j = 0; j < 3; ++j) {
+    ta[j] = _mm256_load_si256(reinterpret_cast<const __m256i*>(t.plane_a[j]));
+    tb[j] = _mm256_load_si256(reinterpret_cast<const __m256i*>(t.plane_b[j]));
+  }
+  const SortV8 one = SortV8{} + 1, sent = SortV8{} + 0xFF, invalid_bit = SortV8{} + 0x80;
+  const __m256i up = _mm256_set1_epi8(0x70), down = _mm256_set1_epi8(0x10), zero = _mm256_setzero_si256();
+  for (int x0 = 0; x0 < w; x0 += kAvx2Lanes) {
+    const int m = std::min(kAvx2Lanes, w - x0);
+    if (!any_needed(need_row, x0, m)) {
+      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
+      continue;
+    }
+    SortV8 v[kSortN];
+#pragma GCC unroll 5
+    for (int ky = 0; ky < 5; ++ky)
+#pragma GCC unroll 5
+      for (int kx = 0; kx < 5; ++kx)
+        std::memcpy(&v[5 * ky + kx], rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx), sizeof(SortV8));
+#pragma GCC unroll 140
+    for (int e = 0; e < kSortCe; ++e) {
+      const SortV8 a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
+      v[kSort25[std::size_t(e)].a] = a < b ? a : b;  // vpminub
+      v[kSort25[std::size_t(e)].b] = a < b ? b : a;  // vpmaxub
+    }
+    SortV8 pos = one, valid = SortV8{}, s2 = SortV8{};
+    __m256i s0l = zero, s0h = zero, s1l = zero, s1h = zero;  // uint16: blocks 0-7 | 16-23, 8-15 | 24-31
+#pragma GCC unroll 25
+    for (int k = 0; k < kSortN; ++k) {
+      if (k > 0) pos = (pos & reinterpret_cast<SortV8>(v[k] == v[k - 1])) + one;
+      const auto bad = reinterpret_cast<SortV8>(v[k] == sent);  // all ones where invalid
+      valid += one + bad;                                     // + 1 where valid, + 0 where not
+      const auto idx = reinterpret_cast<__m256i>(pos | (bad & invalid_bit));
+      const __m256i ia = _mm256_adds_epu8(idx, up), ib = _mm256_subs_epi8(idx, down);
+      const __m256i r0 = _mm256_or_si256(_mm256_shuffle_epi8(ta[0], ia), _mm256_shuffle_epi8(tb[0], ib));
+      const __m256i r1 = _mm256_or_si256(_mm256_shuffle_epi8(ta[1], ia), _mm256_shuffle_epi8(tb[1], ib));
+      const __m256i r2 = _mm256_or_si256(_mm256_shuffle_epi8(ta[2], ia), _mm256_shuffle_epi8(tb[2], ib));
+      s0l = _mm256_add_epi16(s0l, _mm256_unpacklo_epi8(r0, zero));
+      s0h = _mm256_add_epi16(s0h, _mm256_unpackhi_epi8(r0, zero));
+      s1l = _mm256_add_epi16(s1l, _mm256_unpacklo_epi8(r1, zero));
+      s1h = _mm256_add_epi16(s1h, _mm256_unpackhi_epi8(r1, zero));
+      s2 += reinterpret_cast<SortV8>(r2);
+    }
+    // Blocks 8g .. 8g + 7 as epi32: the uint16 sums sit in 128-bit half g / 2 of s*l (g even) or s*h (g odd).
+    const auto n8 = reinterpret_cast<__m256i>(valid), p2 = reinterpret_cast<__m256i>(s2);
+    alignas(32) std::int32_t e[kAvx2Lanes];
+    for (int g = 0; g < 4; ++g) {
+      const __m256i s0 = (g & 1) ? s0h : s0l, s1 = (g & 1) ? s1h : s1l;
+      const __m128i h0 = g < 2 ? _mm256_castsi256_si128(s0) : _mm256_extracti128_si256(s0, 1);
+      const __m128i h1 = g < 2 ? _mm256_castsi256_si128(s1) : _mm256_extracti128_si256(s1, 1);
+      const __m128i nb = g < 2 ? _mm256_castsi256_si128(n8) : _mm256_extracti128_si256(n8, 1);
+      const __m128i pb = g < 2 ? _mm256_castsi256_si128(p2) : _mm256_extracti128_si256(p2, 1);
+      const __m128i nb8 = (g & 1) ? _mm_srli_si128(nb, 8) : nb, pb8 = (g & 1) ? _mm_srli_si128(pb, 8) : pb;
+      const __m256i sum = _mm256_add_epi32(
+          _mm256_add_epi32(_mm256_cvtepu16_epi32(h0), _mm256_slli_epi32(_mm256_cvtepu16_epi32(h1), 8)),
+          _mm256_slli_epi32(_mm256_cvtepu8_epi32(pb8), 16));
+      _mm256_store_si256(reinterpret_cast<__m256i*>(e + 8 * g), entropy8(_mm256_cvtepu8_epi32(nb8), sum, t.t32));
+    }
+    if (need_row)
+      for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
+    else
+      std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+  }
+}
+#endif
+
+// The builds of the sorted kernel, fastest first; the best one the CPU runs is taken unless the
+// portable one is asked for (tests).
+enum class SortedIsa { kAvx512bw, kAvx2, kPortable };
+
+// The AVX2 build works on uint8 bins: bins 0 .. max_disparity <= 254 (0xFF: the sentinel).
+constexpr int kAvx2MaxBin = 254;
+
+SortedIsa best_sorted_isa(int max_disparity) {
+  if (detail::cpu_has_avx512bw()) return SortedIsa::kAvx512bw;
+  if (detail::cpu_has_avx2() && max_disparity <= kAvx2MaxBin) return SortedIsa::kAvx2;
+  return SortedIsa::kPortable;
+}
+
+ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const ImageU8* need, SortedIsa isa) {
   const int w = disp.width, h = disp.height, r = 2;
   const int W = w + 2 * r + kSortLanes, H = h + 2 * r;
-  std::vector<std::uint16_t> pad(std::size_t(W) * std::size_t(H), kSortSentinel);
+  // The bins with sentinel borders: uint16 (kSortSentinel), or uint8 (0xFF) for the AVX2 build.
+  const bool bytes = isa == SortedIsa::kAvx2;
+  std::vector<std::uint16_t> pad(bytes ? 0 : std::size_t(W) * std::size_t(H), kSortSentinel);
+  std::vector<std::uint8_t> pad8(bytes ? std::size_t(W) * std::size_t(H) : 0, 0xFF);
   const auto dmax = static_cast<std::int16_t>(std::clamp(max_disparity, 0, 32766));
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (int y = 0; y < h; ++y) {
-    // the sliding kernel's bins; its -1 for an invalid pixel is kSortSentinel as uint16
-    bins_row(disp.row(y), reinterpret_cast<std::int16_t*>(pad.data() + std::size_t(y + r) * std::size_t(W) + r), w, dmax);
+    // the sliding kernel's bins; its -1 for an invalid pixel is kSortSentinel as uint16, 0xFF as uint8
+    if (!bytes) {
+      bins_row(disp.row(y), reinterpret_cast<std::int16_t*>(pad.data() + std::size_t(y + r) * std::size_t(W) + r), w, dmax);
+      continue;
+    }
+    std::vector<std::int16_t> b(static_cast<std::size_t>(w));
+    bins_row(disp.row(y), b.data(), w, dmax);
+    std::uint8_t* row8 = pad8.data() + std::size_t(y + r) * std::size_t(W) + r;
+    for (int x = 0; x < w; ++x) row8[x] = static_cast<std::uint8_t>(b[std::size_t(x)]);  // dmax <= 254
   }
   SortedTables t{};
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(kSortN);
@@ -229,8 +378,12 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
     const std::uint64_t dt = k >= 1 ? T[std::size_t(k)] - T[std::size_t(k - 1)] : 0;
     t.dt_lo[k] = static_cast<std::uint16_t>(dt & 1023);
     t.dt_hi[k] = static_cast<std::uint16_t>(dt >> 10);
+    for (int j = 0; j < 3; ++j) {
+      const auto b = static_cast<std::uint8_t>(dt >> (8 * j));  // dT[25] < 2^19: the planes hold it whole
+      std::uint8_t(&plane)[32] = k < 16 ? t.plane_a[j] : t.plane_b[j];
+      plane[k % 16] = plane[k % 16 + 16] = b;
+    }
   }
-  const bool fast = detail::cpu_has_avx512bw();
   ImageI32 out(w, h, 0);
 #if defined(FS_HAVE_OPENMP)
 #pragma omp parallel for schedule(static)
@@ -238,12 +391,17 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* nr = need ? need->row(y) : nullptr;
 #if defined(FS_HAVE_AVX512BW_DISPATCH)
-    if (fast) {
+    if (isa == SortedIsa::kAvx512bw) {
       sorted_entropy_row_avx512(pad.data(), W, w, y, t, nr, out.row(y));
       continue;
     }
 #endif
-    (void)fast;
+#if defined(FS_HAVE_AVX2_DISPATCH)
+    if (isa == SortedIsa::kAvx2) {
+      sorted_entropy_row_avx2(pad8.data(), W, w, y, t, nr, out.row(y));
+      continue;
+    }
+#endif
     sorted_entropy_row(pad.data(), W, w, y, t, nr, out.row(y));
   }
   return out;
@@ -251,8 +409,11 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
 }  // namespace
 
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need, EntropyKernel kernel) {
-  if (window == 5 && (kernel == EntropyKernel::kSorted || (kernel == EntropyKernel::kAuto && detail::cpu_has_avx512bw())))
-    return block_entropy_sorted(disp, max_disparity, need);
+  if (window == 5 && kernel == EntropyKernel::kSortedPortable)
+    return block_entropy_sorted(disp, max_disparity, need, SortedIsa::kPortable);
+  if (window == 5 && (kernel == EntropyKernel::kSorted ||
+                      (kernel == EntropyKernel::kAuto && best_sorted_isa(max_disparity) != SortedIsa::kPortable)))
+    return block_entropy_sorted(disp, max_disparity, need, best_sorted_isa(max_disparity));
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
