@@ -182,6 +182,10 @@ MatcherParams to_params(const Values& v) {
   p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
   p.esr.tau = v.num("esr.tau");
+  {
+    const std::string k = v.str("esr.kernel");  // one of the schema's choices (checked above)
+    p.esr.kernel = k == "sliding" ? EntropyKernel::kSliding : k == "sorted" ? EntropyKernel::kSorted : EntropyKernel::kAuto;
+  }
   p.densify.enabled = v.flag("densify.enabled");
   p.densify.speckle_max_size = i("densify.speckle_max_size");
   p.densify.speckle_max_diff = i("densify.speckle_max_diff");
@@ -304,7 +308,9 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\n\n"
     << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
-    << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "") << "\n\n"
+    << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "")
+    << "\nkernel = \"" << (p.esr.kernel == EntropyKernel::kSliding ? "sliding" : p.esr.kernel == EntropyKernel::kAuto ? "auto" : "sorted")
+    << "\"\n\n"
     << "[densify]\nenabled = " << (p.densify.enabled ? "true" : "false")
     << "\nspeckle_max_size = " << p.densify.speckle_max_size << "\nspeckle_max_diff = " << p.densify.speckle_max_diff
     << "\nfill = " << (p.densify.fill ? "true" : "false") << "\ninterpolate_max_diff = " << p.densify.interpolate_max_diff

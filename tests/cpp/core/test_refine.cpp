@@ -317,6 +317,29 @@ TEST(Esr, BothEntropyKernelsMatchTheReferenceOnOddSizes) {
   }
 }
 
+TEST(Esr, RefinementIsTheSameWithEveryEntropyKernel) {
+  // `[esr] kernel` picks how eq. (14) is computed, never what eq. (15) does with it: the refined map
+  // and the replaced mask are identical for every kernel, on random maps of odd sizes with invalid pixels.
+  for (auto [w, h] : {std::pair{37, 11}, {96, 33}, {5, 5}}) {
+    const ImageI16 dl = random_disp(w, h, 30, unsigned(w * 7 + h), 15, 3);
+    const ImageI16 dr = random_disp(w, h, 30, unsigned(w * 5 + h + 1), 5, 3);
+    EsrParams p;
+    ImageU8 rep_ref;
+    p.kernel = EntropyKernel::kSliding;
+    const ImageI16 ref = entropy_selective_refinement(dl, dr, p, 40, &rep_ref);
+    if (w > 5) {
+      ASSERT_GT(std::count(rep_ref.data.begin(), rep_ref.data.end(), 1), 0) << "eq. (15) replaced nothing";
+    }
+    for (const EntropyKernel k : {EntropyKernel::kAuto, EntropyKernel::kSorted, EntropyKernel::kSortedPortable}) {
+      p.kernel = k;
+      ImageU8 rep;
+      const ImageI16 out = entropy_selective_refinement(dl, dr, p, 40, &rep);
+      EXPECT_EQ(out.data, ref.data) << w << "x" << h << " kernel " << int(k);
+      EXPECT_EQ(rep.data, rep_ref.data) << w << "x" << h << " kernel " << int(k);
+    }
+  }
+}
+
 TEST(Esr, EntropyOfKnownBlocks) {
   ImageI16 d(9, 9, static_cast<std::int16_t>(3 * kDispScale));
   EXPECT_EQ(block_entropy(d, 3, 8).at(4, 4), 0);  // constant block: 0 bit

@@ -58,10 +58,20 @@ struct LrParams {
   int max_diff = 1;  // eq. (13) [px]
 };
 
+// The block-entropy kernel of eq. (14) (block_entropy, esr/; docs/algorithm.md 6): both give the same
+// integers. kSliding: the histogram sliding along the row (any window). kSorted (5 x 5 blocks): each
+// block's 25 bins sorted by a compare-exchange network, 16 or 32 blocks at a time, in its fastest build
+// for the CPU (AVX-512BW; AVX2 or NEON when max_disparity <= 254; else a portable one).
+// kSortedPortable: always the portable build (gcc vector types, a scalar table lookup: for tests).
+// kAuto: kSorted for window 5 on x86-64 with AVX-512BW or AVX2 (measured faster there), kSliding
+// otherwise (aarch64 included: not measured on a Pi yet; `[esr] kernel` picks one by hand).
+enum class EntropyKernel { kAuto, kSliding, kSorted, kSortedPortable };
+
 struct EsrParams {
   bool enabled = true;
   int window = 5;     // [px], odd
   double tau = 0.5;   // [bit], eq. (15)
+  EntropyKernel kernel = EntropyKernel::kAuto;  // eq. (14)'s kernel (same integers either way)
 };
 
 // Bilateral smoothing of the dense map on a sparse tap grid (docs/algorithm.md 6d).

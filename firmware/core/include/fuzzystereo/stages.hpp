@@ -165,14 +165,7 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
 // (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
 // need (optional, same size): only pixels with need != 0 are computed, the others are 0 (a gap
 // between needed pixels wider than the window rebuilds the block instead of sliding across it).
-// Two kernels give the same integers: kSliding (the histogram sliding along the row, any window)
-// and kSorted (5 x 5 blocks only: each block's 25 bins sorted by a compare-exchange network, 32
-// pixels at a time, and the counts read off the sorted runs; docs/algorithm.md 6 "Sorted block
-// entropy"). kSorted runs its fastest build for the CPU (AVX-512BW; AVX2 when max_disparity <= 254;
-// else the portable one); kSortedPortable always the portable one (gcc vector types, a scalar table
-// lookup: for tests). kAuto takes kSorted for window 5 where an AVX-512BW or AVX2 build runs, kSliding
-// otherwise.
-enum class EntropyKernel { kAuto, kSliding, kSorted, kSortedPortable };
+// Two kernels give the same integers (EntropyKernel, params.hpp).
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need = nullptr,
                        EntropyKernel kernel = EntropyKernel::kAuto);
 // Mean disparity (Q4) of the valid pixels of a w x w block around every pixel (integral image).

@@ -16,8 +16,9 @@
 // position of sample i within its run of equal bins. A compare-exchange network sorts the 25 bins of
 // 32 neighbouring blocks at once (uint16 lanes, min / max), a scan gives every p_i, and dT[p_i] is a
 // 32-entry table lookup per lane; no branch depends on the data. Same integers as the sliding
-// kernel. Builds: AVX-512BW (32 lanes, vpermw), AVX2 (16 lanes, vpshufb on byte planes of the
-// table), picked at run time, and a portable one (gcc vector types; its lookup is scalar code).
+// kernel. Builds: AVX-512BW (32 lanes, vpermw) and AVX2 (32 uint8 lanes, vpshufb on byte planes of
+// the table), picked at run time, NEON on aarch64 (16 uint8 lanes, tbl), and a portable one (gcc
+// vector types; its lookup is scalar code).
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -30,6 +31,10 @@
 
 #if defined(FS_HAVE_AVX2_DISPATCH)
 #include <immintrin.h>
+#endif
+#if defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+#define FS_HAVE_NEON_SORTED 1
 #endif
 
 namespace fs {
@@ -336,16 +341,83 @@ FS_TARGET_AVX2 void sorted_entropy_row_avx2(const std::uint8_t* __restrict pad, 
 }
 #endif
 
+#if defined(FS_HAVE_NEON_SORTED)
+// The NEON build (aarch64), for bins <= 254 like the AVX2 one: 16 blocks at a time in the uint8 lanes
+// of a q register (32 of them: the 25 samples need no spill), the same network and run scan, and
+// dT[p_i] by one tbl per byte plane (vqtbl2q_u8 on entries 0-31; an index >= 32 reads 0, so an invalid
+// sample's index p_i | 0x80 reads 0). Planes 0 and 1 are summed in uint16 (uaddw), plane 2 in uint8.
+constexpr int kNeonLanes = 16;
+
+void sorted_entropy_row_neon(const std::uint8_t* __restrict pad, int W, int w, int y, const SortedTables& t,
+                             const std::uint8_t* need_row, std::int32_t* __restrict o) {
+  const std::uint8_t* rows = pad + std::size_t(y) * std::size_t(W);
+  uint8x16x2_t tab[3];
+  for (int j = 0; j < 3; ++j) {
+    tab[j].val[0] = vld1q_u8(t.plane_a[j]);  // entries 0-15 (the first 16 bytes of the 32)
+    tab[j].val[1] = vld1q_u8(t.plane_b[j]);  // entries 16-31
+  }
+  const uint8x16_t one = vdupq_n_u8(1), sent = vdupq_n_u8(0xFF), invalid_bit = vdupq_n_u8(0x80);
+  for (int x0 = 0; x0 < w; x0 += kNeonLanes) {
+    const int m = std::min(kNeonLanes, w - x0);
+    if (!any_needed(need_row, x0, m)) {
+      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
+      continue;
+    }
+    uint8x16_t v[kSortN];
+    for (int ky = 0; ky < 5; ++ky)
+      for (int kx = 0; kx < 5; ++kx) v[5 * ky + kx] = vld1q_u8(rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx));
+#pragma GCC unroll 140
+    for (int e = 0; e < kSortCe; ++e) {
+      const uint8x16_t a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
+      v[kSort25[std::size_t(e)].a] = vminq_u8(a, b);
+      v[kSort25[std::size_t(e)].b] = vmaxq_u8(a, b);
+    }
+    uint8x16_t pos = one, valid = vdupq_n_u8(0), s2 = vdupq_n_u8(0);
+    uint16x8_t s0l = vdupq_n_u16(0), s0h = s0l, s1l = s0l, s1h = s0l;
+#pragma GCC unroll 25
+    for (int k = 0; k < kSortN; ++k) {
+      if (k > 0) pos = vaddq_u8(vandq_u8(pos, vceqq_u8(v[k], v[k - 1])), one);
+      const uint8x16_t bad = vceqq_u8(v[k], sent);  // all ones where invalid
+      valid = vaddq_u8(valid, vaddq_u8(one, bad));   // + 1 where valid, + 0 where not
+      const uint8x16_t idx = vorrq_u8(pos, vandq_u8(bad, invalid_bit));
+      const uint8x16_t r0 = vqtbl2q_u8(tab[0], idx), r1 = vqtbl2q_u8(tab[1], idx), r2 = vqtbl2q_u8(tab[2], idx);
+      s0l = vaddw_u8(s0l, vget_low_u8(r0));
+      s0h = vaddw_high_u8(s0h, r0);
+      s1l = vaddw_u8(s1l, vget_low_u8(r1));
+      s1h = vaddw_high_u8(s1h, r1);
+      s2 = vaddq_u8(s2, r2);
+    }
+    std::uint8_t n8[kNeonLanes], p2[kNeonLanes];
+    std::uint16_t b0[kNeonLanes], b1[kNeonLanes], nb[kNeonLanes];
+    vst1q_u8(n8, valid);
+    vst1q_u8(p2, s2);
+    vst1q_u16(b0, s0l);
+    vst1q_u16(b0 + 8, s0h);
+    vst1q_u16(b1, s1l);
+    vst1q_u16(b1 + 8, s1h);
+    std::uint32_t sum[kNeonLanes];
+    for (int i = 0; i < kNeonLanes; ++i) {
+      nb[i] = n8[i];
+      sum[i] = std::uint32_t(b0[i]) + (std::uint32_t(b1[i]) << 8) + (std::uint32_t(p2[i]) << 16);
+    }
+    store_entropies(nb, sum, kNeonLanes, m, t, need_row, x0, o);
+  }
+}
+#endif
+
 // The builds of the sorted kernel, fastest first; the best one the CPU runs is taken unless the
 // portable one is asked for (tests).
-enum class SortedIsa { kAvx512bw, kAvx2, kPortable };
+enum class SortedIsa { kAvx512bw, kAvx2, kNeon, kPortable };
 
-// The AVX2 build works on uint8 bins: bins 0 .. max_disparity <= 254 (0xFF: the sentinel).
-constexpr int kAvx2MaxBin = 254;
+// The AVX2 and NEON builds work on uint8 bins: bins 0 .. max_disparity <= 254 (0xFF: the sentinel).
+constexpr int kByteMaxBin = 254;
 
 SortedIsa best_sorted_isa(int max_disparity) {
   if (detail::cpu_has_avx512bw()) return SortedIsa::kAvx512bw;
-  if (detail::cpu_has_avx2() && max_disparity <= kAvx2MaxBin) return SortedIsa::kAvx2;
+  if (detail::cpu_has_avx2() && max_disparity <= kByteMaxBin) return SortedIsa::kAvx2;
+#if defined(FS_HAVE_NEON_SORTED)
+  if (max_disparity <= kByteMaxBin) return SortedIsa::kNeon;
+#endif
   return SortedIsa::kPortable;
 }
 
@@ -353,7 +425,7 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
   const int w = disp.width, h = disp.height, r = 2;
   const int W = w + 2 * r + kSortLanes, H = h + 2 * r;
   // The bins with sentinel borders: uint16 (kSortSentinel), or uint8 (0xFF) for the AVX2 build.
-  const bool bytes = isa == SortedIsa::kAvx2;
+  const bool bytes = isa == SortedIsa::kAvx2 || isa == SortedIsa::kNeon;
   std::vector<std::uint16_t> pad(bytes ? 0 : std::size_t(W) * std::size_t(H), kSortSentinel);
   std::vector<std::uint8_t> pad8(bytes ? std::size_t(W) * std::size_t(H) : 0, 0xFF);
   const auto dmax = static_cast<std::int16_t>(std::clamp(max_disparity, 0, 32766));
@@ -402,6 +474,12 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
       continue;
     }
 #endif
+#if defined(FS_HAVE_NEON_SORTED)
+    if (isa == SortedIsa::kNeon) {
+      sorted_entropy_row_neon(pad8.data(), W, w, y, t, nr, out.row(y));
+      continue;
+    }
+#endif
     sorted_entropy_row(pad.data(), W, w, y, t, nr, out.row(y));
   }
   return out;
@@ -412,7 +490,8 @@ ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, cons
   if (window == 5 && kernel == EntropyKernel::kSortedPortable)
     return block_entropy_sorted(disp, max_disparity, need, SortedIsa::kPortable);
   if (window == 5 && (kernel == EntropyKernel::kSorted ||
-                      (kernel == EntropyKernel::kAuto && best_sorted_isa(max_disparity) != SortedIsa::kPortable)))
+                      (kernel == EntropyKernel::kAuto && (best_sorted_isa(max_disparity) == SortedIsa::kAvx512bw ||
+                                                         best_sorted_isa(max_disparity) == SortedIsa::kAvx2))))
     return block_entropy_sorted(disp, max_disparity, need, best_sorted_isa(max_disparity));
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
@@ -692,8 +771,8 @@ ImageI16 entropy_selective_refinement(const ImageI16& disp_lr, const ImageI16& d
   ImageI32 El, Er;
   ImageI32 Ml, Mr;
   detail::run_pair(
-      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l); Ml = block_mean_as<std::int32_t>(disp_lr, p.window); },
-      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r); Mr = block_mean_as<std::int32_t>(disp_right, p.window); });
+      0, [&] { El = block_entropy(disp_lr, p.window, max_disparity, &need_l, p.kernel); Ml = block_mean_as<std::int32_t>(disp_lr, p.window); },
+      [&] { Er = block_entropy(disp_right, p.window, max_disparity, &need_r, p.kernel); Mr = block_mean_as<std::int32_t>(disp_right, p.window); });
   const auto tau = static_cast<std::int64_t>(std::llround(p.tau * kQ16One));
   ImageI16 out(w, h);
   ImageU8 rep_scratch;
