@@ -186,6 +186,24 @@ inline bool any_needed(const std::uint8_t* need_row, int x0, int m) {
     std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
 }
 
+// The 25 samples of the blocks at columns x0 .. x0 + lanes - 1 (rows: the pad row of the blocks' top
+// row; block x covers columns x .. x + 4 of 5 rows), one vector per sample, each lane sorted by the
+// network. V: a gcc vector type (or a NEON one) whose lanes are the pad's element type.
+template <typename V, typename E>
+[[gnu::always_inline]] inline void load_and_sort25(const E* rows, int W, int x0, V* v) {
+#pragma GCC unroll 5
+  for (int ky = 0; ky < 5; ++ky)
+#pragma GCC unroll 5
+    for (int kx = 0; kx < 5; ++kx)
+      std::memcpy(&v[5 * ky + kx], rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx), sizeof(V));
+#pragma GCC unroll 140
+  for (int e = 0; e < kSortCe; ++e) {
+    const V a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
+    v[kSort25[std::size_t(e)].a] = a < b ? a : b;  // vpminuw / vpminub / umin
+    v[kSort25[std::size_t(e)].b] = a < b ? b : a;  // vpmaxuw / vpmaxub / umax
+  }
+}
+
 // Output row y of eq. (14) for 5 x 5 blocks. pad: the bins (kSortSentinel where invalid) with 2
 // sentinel rows / columns around the image and kSortLanes more columns on the right, stride W; the
 // block of (x, y) is pad rows y..y+4, columns x..x+4.
@@ -201,17 +219,7 @@ inline bool any_needed(const std::uint8_t* need_row, int x0, int m) {
       continue;
     }
     SortV v[kSortN];
-#pragma GCC unroll 5
-    for (int ky = 0; ky < 5; ++ky)
-#pragma GCC unroll 5
-      for (int kx = 0; kx < 5; ++kx)
-        std::memcpy(&v[5 * ky + kx], rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx), sizeof(SortV));
-#pragma GCC unroll 140
-    for (int e = 0; e < kSortCe; ++e) {
-      const SortV a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
-      v[kSort25[std::size_t(e)].a] = a < b ? a : b;  // vpminuw
-      v[kSort25[std::size_t(e)].b] = a < b ? b : a;  // vpmaxuw
-    }
+    load_and_sort25(rows, W, x0, v);
     // p_i: 1 at a run's first sample, +1 along it; dT[p_i] summed over the valid samples.
     SortV pos = one, n = zero, lo = zero, hi = zero;
 #pragma GCC unroll 25
@@ -289,17 +297,7 @@ FS_TARGET_AVX2 void sorted_entropy_row_avx2(const std::uint8_t* __restrict pad, 
       continue;
     }
     SortV8 v[kSortN];
-#pragma GCC unroll 5
-    for (int ky = 0; ky < 5; ++ky)
-#pragma GCC unroll 5
-      for (int kx = 0; kx < 5; ++kx)
-        std::memcpy(&v[5 * ky + kx], rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx), sizeof(SortV8));
-#pragma GCC unroll 140
-    for (int e = 0; e < kSortCe; ++e) {
-      const SortV8 a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
-      v[kSort25[std::size_t(e)].a] = a < b ? a : b;  // vpminub
-      v[kSort25[std::size_t(e)].b] = a < b ? b : a;  // vpmaxub
-    }
+    load_and_sort25(rows, W, x0, v);
     SortV8 pos = one, valid = SortV8{}, s2 = SortV8{};
     __m256i s0l = zero, s0h = zero, s1l = zero, s1h = zero;  // uint16: blocks 0-7 | 16-23, 8-15 | 24-31
 #pragma GCC unroll 25
@@ -364,14 +362,7 @@ void sorted_entropy_row_neon(const std::uint8_t* __restrict pad, int W, int w, i
       continue;
     }
     uint8x16_t v[kSortN];
-    for (int ky = 0; ky < 5; ++ky)
-      for (int kx = 0; kx < 5; ++kx) v[5 * ky + kx] = vld1q_u8(rows + std::size_t(ky) * std::size_t(W) + std::size_t(x0 + kx));
-#pragma GCC unroll 140
-    for (int e = 0; e < kSortCe; ++e) {
-      const uint8x16_t a = v[kSort25[std::size_t(e)].a], b = v[kSort25[std::size_t(e)].b];
-      v[kSort25[std::size_t(e)].a] = vminq_u8(a, b);
-      v[kSort25[std::size_t(e)].b] = vmaxq_u8(a, b);
-    }
+    load_and_sort25(rows, W, x0, v);
     uint8x16_t pos = one, valid = vdupq_n_u8(0), s2 = vdupq_n_u8(0);
     uint16x8_t s0l = vdupq_n_u16(0), s0h = s0l, s1l = s0l, s1h = s0l;
 #pragma GCC unroll 25
