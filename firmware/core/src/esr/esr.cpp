@@ -51,12 +51,22 @@ std::vector<std::uint64_t> ceil_reciprocals_2p32(std::uint64_t kmax) {
 
 // Per-row passes of block_entropy's precomputation, one call per row (clone dispatch per row, loops
 // branch-free so they vectorise).
-FS_TARGET_CLONES_V4
-void bins_row(const std::int16_t* __restrict d, std::int16_t* __restrict b, int w, std::int16_t dmax) {
+// bins_row: the histogram bin of each pixel, nearest integer px clamped at dmax, -1 where invalid; as
+// int16, or as uint8 for the sorted kernel's byte builds (dmax <= 254: -1 becomes the sentinel 0xFF).
+template <typename B>
+[[gnu::always_inline]] inline void bins_row_body(const std::int16_t* __restrict d, B* __restrict b, int w, std::int16_t dmax) {
   for (int x = 0; x < w; ++x) {
     const auto v = static_cast<std::int16_t>((d[x] + kDispScale / 2) >> kDispShift);
-    b[x] = d[x] == kInvalidDisp ? std::int16_t(-1) : std::min(v, dmax);
+    b[x] = static_cast<B>(d[x] == kInvalidDisp ? std::int16_t(-1) : std::min(v, dmax));
   }
+}
+FS_TARGET_CLONES_V4
+void bins_row(const std::int16_t* __restrict d, std::int16_t* __restrict b, int w, std::int16_t dmax) {
+  bins_row_body(d, b, w, dmax);
+}
+FS_TARGET_CLONES_V4
+void bins_row(const std::int16_t* __restrict d, std::uint8_t* __restrict b, int w, std::int16_t dmax) {
+  bins_row_body(d, b, w, dmax);
 }
 
 // rl[x] = min(below[x] + 1, cap) where b[x] == b1[x] (the run continues downwards), else 1.
@@ -160,12 +170,23 @@ struct SortedTables {
   std::uint32_t t32[kSortN + 1];  // T[n] (< 2^23)
 };
 
-// Whether any pixel of [x0, x0 + m) is needed (need_row = nullptr: all are).
-inline bool any_needed(const std::uint8_t* need_row, int x0, int m) {
-  if (!need_row) return true;
+// A chunk [x0, x0 + m) of a row with no needed pixel (need_row = nullptr: all are needed) is written as
+// 0 and skipped: true when it was.
+inline bool skip_unneeded(const std::uint8_t* need_row, int x0, int m, std::int32_t* __restrict o) {
+  if (!need_row) return false;
   std::uint8_t any = 0;
   for (int i = 0; i < m; ++i) any |= need_row[x0 + i];
-  return any != 0;
+  if (any) return false;
+  std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
+  return true;
+}
+
+// The chunk's m entropies e into o[x0 ..], 0 where not needed.
+inline void store_chunk(const std::int32_t* e, int m, const std::uint8_t* need_row, int x0, std::int32_t* __restrict o) {
+  if (need_row)
+    for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
+  else
+    std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
 }
 
 // eq. (14)'s quotient floor((T[n] - sum + n / 2) / n) for m lanes (the sliding kernel's integers),
@@ -180,10 +201,7 @@ inline bool any_needed(const std::uint8_t* need_row, int x0, int m) {
     const std::uint32_t a = tn - sum_t + nn / 2;
     e[i] = nn == 0 || tn <= sum_t ? 0 : static_cast<std::int32_t>(double(a) / double(nn == 0 ? 1 : nn));
   }
-  if (need_row)
-    for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
-  else
-    std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+  store_chunk(e, m, need_row, x0, o);
 }
 
 // The 25 samples of the blocks at columns x0 .. x0 + lanes - 1 (rows: the pad row of the blocks' top
@@ -214,10 +232,7 @@ template <typename V, typename E>
   const SortV one = SortV{} + 1, zero = SortV{}, sent = SortV{} + kSortSentinel;
   for (int x0 = 0; x0 < w; x0 += kSortLanes) {
     const int m = std::min(kSortLanes, w - x0);
-    if (!any_needed(need_row, x0, m)) {
-      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
-      continue;
-    }
+    if (skip_unneeded(need_row, x0, m, o)) continue;
     SortV v[kSortN];
     load_and_sort25(rows, W, x0, v);
     // p_i: 1 at a run's first sample, +1 along it; dT[p_i] summed over the valid samples.
@@ -240,8 +255,8 @@ template <typename V, typename E>
   }
 }
 
-// The portable build (gcc lowers the 32-lane table lookup to scalar code: for tests and CPUs without
-// AVX-512BW, where kAuto takes the sliding kernel instead) and the AVX-512BW one.
+// The portable build (gcc lowers the 32-lane table lookup to scalar code: for tests, and for kSorted
+// where no other build applies; kAuto takes the sliding kernel there) and the AVX-512BW one.
 void sorted_entropy_row(const std::uint16_t* pad, int W, int w, int y, const SortedTables& t, const std::uint8_t* need_row,
                         std::int32_t* o) {
   sorted_entropy_row_body(pad, W, w, y, t, need_row, o);
@@ -292,10 +307,7 @@ FS_TARGET_AVX2 void sorted_entropy_row_avx2(const std::uint8_t* __restrict pad, 
   const __m256i up = _mm256_set1_epi8(0x70), down = _mm256_set1_epi8(0x10), zero = _mm256_setzero_si256();
   for (int x0 = 0; x0 < w; x0 += kAvx2Lanes) {
     const int m = std::min(kAvx2Lanes, w - x0);
-    if (!any_needed(need_row, x0, m)) {
-      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
-      continue;
-    }
+    if (skip_unneeded(need_row, x0, m, o)) continue;
     SortV8 v[kSortN];
     load_and_sort25(rows, W, x0, v);
     SortV8 pos = one, valid = SortV8{}, s2 = SortV8{};
@@ -331,10 +343,7 @@ FS_TARGET_AVX2 void sorted_entropy_row_avx2(const std::uint8_t* __restrict pad, 
           _mm256_slli_epi32(_mm256_cvtepu8_epi32(pb8), 16));
       _mm256_store_si256(reinterpret_cast<__m256i*>(e + 8 * g), entropy8(_mm256_cvtepu8_epi32(nb8), sum, t.t32));
     }
-    if (need_row)
-      for (int i = 0; i < m; ++i) o[x0 + i] = need_row[x0 + i] ? e[i] : 0;
-    else
-      std::memcpy(o + x0, e, sizeof(std::int32_t) * std::size_t(m));
+    store_chunk(e, m, need_row, x0, o);
   }
 }
 #endif
@@ -357,10 +366,7 @@ void sorted_entropy_row_neon(const std::uint8_t* __restrict pad, int W, int w, i
   const uint8x16_t one = vdupq_n_u8(1), sent = vdupq_n_u8(0xFF), invalid_bit = vdupq_n_u8(0x80);
   for (int x0 = 0; x0 < w; x0 += kNeonLanes) {
     const int m = std::min(kNeonLanes, w - x0);
-    if (!any_needed(need_row, x0, m)) {
-      std::memset(o + x0, 0, sizeof(std::int32_t) * std::size_t(m));
-      continue;
-    }
+    if (skip_unneeded(need_row, x0, m, o)) continue;
     uint8x16_t v[kSortN];
     load_and_sort25(rows, W, x0, v);
     uint8x16_t pos = one, valid = vdupq_n_u8(0), s2 = vdupq_n_u8(0);
@@ -415,7 +421,7 @@ SortedIsa best_sorted_isa(int max_disparity) {
 ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const ImageU8* need, SortedIsa isa) {
   const int w = disp.width, h = disp.height, r = 2;
   const int W = w + 2 * r + kSortLanes, H = h + 2 * r;
-  // The bins with sentinel borders: uint16 (kSortSentinel), or uint8 (0xFF) for the AVX2 build.
+  // The bins with sentinel borders: uint16 (kSortSentinel), or uint8 (0xFF) for the AVX2 and NEON builds.
   const bool bytes = isa == SortedIsa::kAvx2 || isa == SortedIsa::kNeon;
   std::vector<std::uint16_t> pad(bytes ? 0 : std::size_t(W) * std::size_t(H), kSortSentinel);
   std::vector<std::uint8_t> pad8(bytes ? std::size_t(W) * std::size_t(H) : 0, 0xFF);
@@ -425,14 +431,10 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
 #endif
   for (int y = 0; y < h; ++y) {
     // the sliding kernel's bins; its -1 for an invalid pixel is kSortSentinel as uint16, 0xFF as uint8
-    if (!bytes) {
+    if (bytes)
+      bins_row(disp.row(y), pad8.data() + std::size_t(y + r) * std::size_t(W) + r, w, dmax);  // dmax <= 254
+    else
       bins_row(disp.row(y), reinterpret_cast<std::int16_t*>(pad.data() + std::size_t(y + r) * std::size_t(W) + r), w, dmax);
-      continue;
-    }
-    std::vector<std::int16_t> b(static_cast<std::size_t>(w));
-    bins_row(disp.row(y), b.data(), w, dmax);
-    std::uint8_t* row8 = pad8.data() + std::size_t(y + r) * std::size_t(W) + r;
-    for (int x = 0; x < w; ++x) row8[x] = static_cast<std::uint8_t>(b[std::size_t(x)]);  // dmax <= 254
   }
   SortedTables t{};
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(kSortN);
@@ -478,12 +480,12 @@ ImageI32 block_entropy_sorted(const ImageI16& disp, int max_disparity, const Ima
 }  // namespace
 
 ImageI32 block_entropy(const ImageI16& disp, int window, int max_disparity, const ImageU8* need, EntropyKernel kernel) {
-  if (window == 5 && kernel == EntropyKernel::kSortedPortable)
-    return block_entropy_sorted(disp, max_disparity, need, SortedIsa::kPortable);
-  if (window == 5 && (kernel == EntropyKernel::kSorted ||
-                      (kernel == EntropyKernel::kAuto && (best_sorted_isa(max_disparity) == SortedIsa::kAvx512bw ||
-                                                         best_sorted_isa(max_disparity) == SortedIsa::kAvx2))))
-    return block_entropy_sorted(disp, max_disparity, need, best_sorted_isa(max_disparity));
+  if (window == 5 && kernel != EntropyKernel::kSliding) {
+    const SortedIsa isa = kernel == EntropyKernel::kSortedPortable ? SortedIsa::kPortable : best_sorted_isa(max_disparity);
+    // kAuto: only where the sorted kernel was measured faster (the x86-64 builds)
+    if (kernel != EntropyKernel::kAuto || isa == SortedIsa::kAvx512bw || isa == SortedIsa::kAvx2)
+      return block_entropy_sorted(disp, max_disparity, need, isa);
+  }
   const int w = disp.width, h = disp.height, r = window / 2;
   const std::vector<std::uint64_t> T = detail::nlogn_table_q16(std::size_t(window) * std::size_t(window));
   // Once per map: the histogram bin of every pixel (nearest integer px, -1 if invalid) and the
