@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -71,6 +72,39 @@ TEST(FisLut, NodesEqualExactAndBilinearWithinOnePercent) {
     worst = std::max(worst, std::fabs(v - fis_evaluate(def(), a, b)));
   }
   EXPECT_LE(worst, 0.01);
+}
+
+// The table builder's evaluation (per-term aggregate, zero intervals skipped in the centroid) against
+// the step-by-step reference fis_evaluate at every node: the same Q16 value, for the shipped definition
+// and for definitions with other consequent shapes and rule consequents (random, seeded).
+TEST(FisLut, EveryNodeEqualsTheReferenceEvaluation) {
+  auto expect_nodes_equal = [](const FisDefinition& d, int size, const char* what) {
+    const FisLut lut(d, size);
+    int differ = 0;
+    for (int i = 0; i < size; ++i)
+      for (int j = 0; j < size; ++j) {
+        const double v = fis_evaluate(d, static_cast<double>(i) / (size - 1), static_cast<double>(j) / (size - 1));
+        const auto want = static_cast<std::uint32_t>(std::llround(std::clamp(v, 0.0, 1.0) * kQ16One));
+        differ += lut.table()[std::size_t(i) * std::size_t(size) + std::size_t(j)] != want;
+      }
+    EXPECT_EQ(differ, 0) << what;
+  };
+  expect_nodes_equal(def(), 33, "shipped definition");
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> jitter(-0.03, 0.03);
+  std::uniform_int_distribution<int> term(0, static_cast<int>(def().out.terms.size()) - 1);
+  for (int trial = 0; trial < 3; ++trial) {
+    FisDefinition d = def();
+    d.output_points = 301 + 100 * trial;  // other sample grids: crossings off and on the grid
+    for (auto& t : d.out.terms) {          // consequents moved and widened, order within each kept
+      const double shift = jitter(rng), widen = 1.0 + 4.0 * std::fabs(jitter(rng));
+      const double mid = 0.5 * (t.params.front() + t.params.back());
+      for (double& p : t.params) p = std::clamp(mid + (p - mid) * widen + shift, 0.0, 1.0);
+      if (t.mf == "trimf" && !(t.params[0] < t.params[1] || t.params[1] < t.params[2])) t.params = {0.0, 0.5, 1.0};
+    }
+    for (auto& r : d.rules) r.out = term(rng);
+    expect_nodes_equal(d, 17, "perturbed definition");
+  }
 }
 
 TEST(FisLut, ExtremesAndClamping) {
