@@ -115,6 +115,24 @@ void cut_levels(const FisDefinition& def, const double* mu1, const double* mu2, 
   }
 }
 
+// Where term samples m cross the cut level c inside (u[i], u[i+1]), by linear interpolation.
+inline double crossing_x(const std::vector<double>& u, const double* m, int i, double c) {
+  return u[std::size_t(i)] + (c - m[i]) * (u[std::size_t(i) + 1] - u[std::size_t(i)]) / (m[i + 1] - m[i]);
+}
+
+// The aggregated output (max of the clipped active terms) at x between samples i and i + 1.
+inline double aggregate_between(const SampledFis& s, const std::vector<double>& cut, const std::vector<std::size_t>& active,
+                                int i, double x) {
+  const auto& u = s.out_u;
+  double y = 0.0;
+  const double f = (x - u[std::size_t(i)]) / (u[std::size_t(i) + 1] - u[std::size_t(i)]);
+  for (std::size_t t : active) {
+    const auto& m = s.out[t];
+    y = std::max(y, std::min(cut[t], m[std::size_t(i)] + f * (m[std::size_t(i) + 1] - m[std::size_t(i)])));
+  }
+  return y;
+}
+
 // The reference: one output value from the cut levels, step by step as scikit-fuzzy (see the top).
 double evaluate_cut(const SampledFis& s, const std::vector<double>& cut, std::vector<double>& xs, std::vector<double>& ys) {
   // Only the support of the active terms can be non-zero.
@@ -134,10 +152,7 @@ double evaluate_cut(const SampledFis& s, const std::vector<double>& cut, std::ve
     const auto& m = s.out[t];
     for (int i = s.support[t].first; i < s.support[t].second; ++i) {
       const double d0 = m[std::size_t(i)] - cut[t], d1 = m[std::size_t(i) + 1] - cut[t];
-      if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0))
-        cross.emplace_back(i, u[std::size_t(i)] + (cut[t] - m[std::size_t(i)]) *
-                                                      (u[std::size_t(i) + 1] - u[std::size_t(i)]) /
-                                                      (m[std::size_t(i) + 1] - m[std::size_t(i)]));
+      if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0)) cross.emplace_back(i, crossing_x(u, m.data(), i, cut[t]));
     }
   }
   std::sort(cross.begin(), cross.end());
@@ -148,15 +163,6 @@ double evaluate_cut(const SampledFis& s, const std::vector<double>& cut, std::ve
   auto at_sample = [&](int i) {
     double y = 0.0;
     for (std::size_t t : active) y = std::max(y, std::min(cut[t], s.out[t][std::size_t(i)]));
-    return y;
-  };
-  auto between = [&](int i, double x) {
-    double y = 0.0;
-    const double f = (x - u[std::size_t(i)]) / (u[std::size_t(i) + 1] - u[std::size_t(i)]);
-    for (std::size_t t : active) {
-      const auto& m = s.out[t];
-      y = std::max(y, std::min(cut[t], m[std::size_t(i)] + f * (m[std::size_t(i) + 1] - m[std::size_t(i)])));
-    }
     return y;
   };
   // Upsampled universe = samples lo..hi merged with the crossings (np.union1d), then centroid.
@@ -170,7 +176,7 @@ double evaluate_cut(const SampledFis& s, const std::vector<double>& cut, std::ve
       const double x = cross[c].second;
       if (x <= xs.back() || (i + 1 < n && x >= u[std::size_t(i) + 1])) continue;  // duplicate
       xs.push_back(x);
-      ys.push_back(between(i, x));
+      ys.push_back(aggregate_between(s, cut, active, i, x));
     }
   }
   return centroid(xs, ys);
@@ -212,21 +218,11 @@ double evaluate_cut_fast(const SampledFis& s, FastScratch& w) {
     const int a = s.support[t].first, b = s.support[t].second;
     for (int i = a; i < b; ++i) {
       const double d0 = m[i] - ct, d1 = m[i + 1] - ct;
-      if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0))
-        w.cross.emplace_back(i, u[std::size_t(i)] + (ct - m[i]) * (u[std::size_t(i) + 1] - u[std::size_t(i)]) / (m[i + 1] - m[i]));
+      if ((d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0)) w.cross.emplace_back(i, crossing_x(u, m, i, ct));
     }
     for (int i = a; i <= b; ++i) agg[i] = std::max(agg[i], std::min(ct, m[i]));
   }
   std::sort(w.cross.begin(), w.cross.end());
-  auto between = [&](int i, double x) {
-    double y = 0.0;
-    const double f = (x - u[std::size_t(i)]) / (u[std::size_t(i) + 1] - u[std::size_t(i)]);
-    for (std::size_t t : w.active) {
-      const auto& m = s.out[t];
-      y = std::max(y, std::min(cut[t], m[std::size_t(i)] + f * (m[std::size_t(i) + 1] - m[std::size_t(i)])));
-    }
-    return y;
-  };
   // centroid() over the merged points, accumulated on the fly: (x1, y1) the previous point.
   double sum_moment_area = 0.0, sum_area = 0.0;
   double px = u[std::size_t(lo)], py = agg[lo];
@@ -247,7 +243,7 @@ double evaluate_cut_fast(const SampledFis& s, FastScratch& w) {
     for (; c < w.cross.size() && w.cross[std::size_t(c)].first == i; ++c) {
       const double x = w.cross[std::size_t(c)].second;
       if (x <= last || (i + 1 < n && x >= u[std::size_t(i) + 1])) continue;  // duplicate
-      add(x, between(i, x));
+      add(x, aggregate_between(s, cut, w.active, i, x));
       last = x;
     }
   }
