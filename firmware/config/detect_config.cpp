@@ -106,13 +106,16 @@ DetectParams detect_params_from(const ConfigValues& v) {
   p.min_height_m = v.num("detect.min_height_m");
   p.near_m = v.num("detect.near_m");
   p.far_m = v.num("detect.far_m");
-  const std::string src = " (in " + v.source + ")";
-  if (p.road_slope_min > p.road_slope_max)
-    throw ConfigError("detect.road_slope_min (" + std::to_string(p.road_slope_min) + ") must be <= detect.road_slope_max (" +
-                      std::to_string(p.road_slope_max) + ")" + src);
-  if (p.near_m > p.far_m)
-    throw ConfigError("detect.near_m (" + std::to_string(p.near_m) + ") must be <= detect.far_m (" +
-                      std::to_string(p.far_m) + ")" + src);
+  // Cross-field rules, worded as the other config errors: the file, both fields and their values.
+  auto ordered = [&](const char* lo_name, double lo, const char* hi_name, double hi) {
+    if (lo <= hi) return;
+    std::ostringstream ss;
+    ss << v.source << ": fields 'detect." << lo_name << "' = " << lo << " and 'detect." << hi_name << "' = " << hi << ": "
+       << lo_name << " must be <= " << hi_name;
+    throw ConfigError(ss.str());
+  };
+  ordered("road_slope_min", p.road_slope_min, "road_slope_max", p.road_slope_max);
+  ordered("near_m", p.near_m, "far_m", p.far_m);
   return p;
 }
 

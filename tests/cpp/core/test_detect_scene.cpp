@@ -242,6 +242,14 @@ TEST(DetectConfig, DefaultsMatchStructAndCrossChecks) {
   EXPECT_THROW(parse_config("[detect]\ninside_drop_ring_px = 0\n", "t"), ConfigError);
   EXPECT_THROW(parse_config("[detect]\nsky_texture_radius = 0\n", "t"), ConfigError);
   EXPECT_THROW(detect_params_from(parse_config("[detect]\nnear_m = 9.0\nfar_m = 3.0\n", "t").values), ConfigError);
+  // Cross-field rules name the file, both fields and their values.
+  try {
+    detect_params_from(parse_config("[detect]\nroad_slope_min = 2.5\nroad_slope_max = 0.5\n", "my.toml").values);
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "my.toml: fields 'detect.road_slope_min' = 2.5 and 'detect.road_slope_max' = 0.5: "
+                           "road_slope_min must be <= road_slope_max");
+  }
 }
 
 
