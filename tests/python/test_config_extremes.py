@@ -35,40 +35,45 @@ LOOP_SECTIONS = ("tracker", "planner", "loop", "robot", "watchdog", "motors", "c
 ALOE = Path("/usr/share/doc/opencv-doc/examples/data")
 
 
-def extremes(schema: dict, section: str) -> list[tuple[str, object]]:
-    """(key, value) for every numeric field's min and max and both values of every bool of a section."""
-    out: list[tuple[str, object]] = []
-    for key, spec in schema[section].items():
-        kind = spec.get("type")
-        if kind == "bool":
-            out += [(key, True), (key, False)]
-        elif kind in ("int", "float"):
-            for lim in ("min", "max"):
-                if lim not in spec:
-                    continue
-                v = spec[lim]
-                if kind == "int" and spec.get("odd") and v % 2 == 0:
-                    v = v + 1 if lim == "min" else v - 1
-                out.append((key, v))
-    return out
+def limit_value(spec: dict, lim: str) -> object:
+    """A numeric field's schema limit (lim: "min" or "max"), moved inwards to the nearest odd integer for
+    fields that must be odd."""
+    v = spec[lim]
+    if spec["type"] == "int" and spec.get("odd") and v % 2 == 0:
+        v = v + 1 if lim == "min" else v - 1
+    return v
 
 
 def toml_value(v: object) -> str:
     return ("true" if v else "false") if isinstance(v, bool) else repr(v)
 
 
-def at_limit(schema: dict, sections: tuple[str, ...], lim: str) -> str:
-    """A config with every numeric field of the sections at its schema limit (lim: "min" or "max")."""
+def field_cases(schema: dict, sections: tuple[str, ...]) -> list[tuple[str, str, str]]:
+    """One case (name, config text, the field an error must name) per numeric field's min and max and
+    per value of every bool of the sections, each field alone."""
+    cases = []
+    for section in sections:
+        for key, spec in schema[section].items():
+            kind = spec.get("type")
+            values = ([True, False] if kind == "bool" else
+                      [limit_value(spec, lim) for lim in ("min", "max") if lim in spec] if kind in ("int", "float")
+                      else [])
+            for v in values:
+                cases.append((f"{section}.{key} = {toml_value(v)}", f"[{section}]\n{key} = {toml_value(v)}\n",
+                              f"{section}.{key}"))
+    assert cases, f"no fields in {sections}"
+    return cases
+
+
+def limit_case(schema: dict, sections: tuple[str, ...], lim: str) -> tuple[str, str, None]:
+    """One case with every numeric field of the sections at its limit at once (no single field to name)."""
     lines = []
     for section in sections:
         lines.append(f"[{section}]")
-        for key, spec in schema[section].items():
-            if spec.get("type") in ("int", "float") and lim in spec:
-                v = spec[lim]
-                if spec["type"] == "int" and spec.get("odd") and v % 2 == 0:
-                    v = v + 1 if lim == "min" else v - 1
-                lines.append(f"{key} = {toml_value(v)}")
-    return "\n".join(lines) + "\n"
+        lines += [f"{key} = {toml_value(limit_value(spec, lim))}" for key, spec in schema[section].items()
+                  if spec.get("type") in ("int", "float") and lim in spec]
+    name = f"every field of [{sections[0]}] at its {lim}" if len(sections) == 1 else f"the whole config at its {lim}"
+    return name, "\n".join(lines) + "\n", None
 
 
 def run_ok(cmd: list, name: str, section_key: str | None = None) -> str | None:
@@ -86,16 +91,14 @@ def run_ok(cmd: list, name: str, section_key: str | None = None) -> str | None:
     return f"{name}: exit {p.returncode}, last line {last!r} ({' '.join(map(str, cmd))})"
 
 
-def sweep(tmp: Path, schema: dict, sections: tuple[str, ...], command) -> list[str]:
-    """Run command(config_path, out_dir) for every extreme of the sections (2 at a time); the failures."""
-    cases = [(s, k, v) for s in sections if s in schema for k, v in extremes(schema, s)]
-    assert cases, f"no fields in {sections}"
+def run_cases(tmp: Path, cases: list, command) -> list[str]:
+    """command(config_path, out_dir) for every (name, config text, field) case, 2 at a time; the failures."""
 
     def one(i_case):
-        i, (section, key, value) = i_case
+        i, (name, text, section_key) = i_case
         cfg = tmp / f"c{i}.toml"
-        cfg.write_text(f"[{section}]\n{key} = {toml_value(value)}\n")
-        return run_ok(command(cfg, tmp / f"o{i}"), f"{section}.{key} = {toml_value(value)}", f"{section}.{key}")
+        cfg.write_text(text)
+        return run_ok(command(cfg, tmp / f"o{i}"), name, section_key)
 
     with ThreadPoolExecutor(max_workers=2) as pool:
         return [r for r in pool.map(one, enumerate(cases)) if r]
@@ -114,9 +117,9 @@ def test_matcher_fields_at_their_range_ends(firmware_bin, schema, tmp_path):
     left, right = tmp_path / "l.png", tmp_path / "r.png"
     for src, dst in ((ALOE / "aloeL.jpg", left), (ALOE / "aloeR.jpg", right)):
         cv2.imwrite(str(dst), cv2.resize(cv2.imread(str(src)), (160, 139), interpolation=cv2.INTER_AREA))
-    failures = sweep(tmp_path, schema, MATCHER_SECTIONS,
-                     lambda cfg, out: [firmware_bin, "match", "--left", left, "--right", right, "--config", cfg,
-                                       "--out", out])
+    failures = run_cases(tmp_path, field_cases(schema, MATCHER_SECTIONS),
+                         lambda cfg, out: [firmware_bin, "match", "--left", left, "--right", right, "--config", cfg,
+                                           "--out", out])
     assert not failures, "\n".join(failures)
 
 
@@ -125,26 +128,17 @@ def test_detector_fields_at_their_range_ends(firmware_bin, schema, tmp_path):
     subprocess.run([str(firmware_bin), "sim", "generate", "--count", "1", "--seed", "5", "--out", str(gen)],
                    check=True, capture_output=True)
     d = gen / "training"
-    failures = sweep(tmp_path, schema, ("detect",),
-                     lambda cfg, out: [firmware_bin, "detect", "--left", d / "image_2" / "000000_10.png",
-                                       "--right", d / "image_3" / "000000_10.png", "--calib",
-                                       d / "sim_gt" / "000000_10.json", "--config", cfg, "--out", out])
+    failures = run_cases(tmp_path, field_cases(schema, ("detect",)),
+                         lambda cfg, out: [firmware_bin, "detect", "--left", d / "image_2" / "000000_10.png",
+                                           "--right", d / "image_3" / "000000_10.png", "--calib",
+                                           d / "sim_gt" / "000000_10.json", "--config", cfg, "--out", out])
     assert not failures, "\n".join(failures)
 
 
 def test_robot_loop_sections_at_their_range_ends(firmware_bin, schema, common_dir, tmp_path):
     scene = common_dir / "sim" / "scenes" / "demo.toml"
-    cases = [((s,), lim) for s in LOOP_SECTIONS if s in schema for lim in ("min", "max")]
-    cases += [(tuple(schema), lim) for lim in ("min", "max")]  # the whole config at once
-
-    def one(i_case):
-        i, (sections, lim) = i_case
-        cfg = tmp_path / f"c{i}.toml"
-        cfg.write_text(at_limit(schema, sections, lim))
-        name = f"every field of [{sections[0]}] at its {lim}" if len(sections) == 1 else f"the whole config at its {lim}"
-        return run_ok([firmware_bin, "run", "--source", f"sim:{scene}", "--motors", "sim", "--config", cfg,
-                       "--max-frames", "6", "--quiet"], name)
-
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        failures = [r for r in pool.map(one, enumerate(cases)) if r]
+    cases = [limit_case(schema, (s,), lim) for s in LOOP_SECTIONS if s in schema for lim in ("min", "max")]
+    cases += [limit_case(schema, tuple(schema), lim) for lim in ("min", "max")]  # the whole config at once
+    failures = run_cases(tmp_path, cases, lambda cfg, out: [firmware_bin, "run", "--source", f"sim:{scene}", "--motors",
+                                                            "sim", "--config", cfg, "--max-frames", "6", "--quiet"])
     assert not failures, "\n".join(failures)
