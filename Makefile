@@ -4,7 +4,8 @@
 #   make build          native Release build            (preset: default -> build/default)
 #   make build-aarch64  cross build of core + unit tests  (preset: aarch64 -> build/aarch64)
 #   make test           deps, native build + ctest, pytest (tests/python), aarch64 build + ctest
-#                       under qemu; runs every stage and exits non-zero if any failed
+#                       under qemu, the core tests on a non-AVX2 x86-64 CPU (qemu -cpu Nehalem);
+#                       runs every stage and exits non-zero if any failed
 #   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
 #   make demo           deps, build, then the closed-loop simulator run -> out/demo/report.html
 #   make demo-match     the matcher alone on the OpenCV "aloe" pair -> out/demo-match
@@ -89,12 +90,12 @@ build-asan:
 	cmake --build --preset asan -j $(NPROC)
 
 # ---- tests ---------------------------------------------------------------------------------------
-.PHONY: test test-native test-python test-aarch64 test-asan test-asan-core
+.PHONY: test test-native test-python test-aarch64 test-x86-baseline test-asan test-asan-core
 # Every stage runs even after a failure, so one CI run reports everything; the exit code is
 # non-zero if any stage failed.
 test: deps
 	@failed=""; \
-	for stage in test-native test-python test-aarch64 test-asan-core; do \
+	for stage in test-native test-python test-aarch64 test-x86-baseline test-asan-core; do \
 	  echo "==== $$stage"; \
 	  $(MAKE) $$stage || failed="$$failed $$stage"; \
 	done; \
@@ -119,6 +120,19 @@ else
 test-aarch64: build-aarch64
 	ctest --preset aarch64 -j $(NPROC)
 endif
+
+# The x86-64 baseline: the core and simulator unit tests (the golden pipeline hashes among them) under
+# `qemu-x86_64 -cpu Nehalem`, a CPU without AVX/AVX2. The kernels' target_clones "default" branches and
+# the run-time fallbacks (ESR's sliding kernel, the boundary stage's SWAR bit count) run there, which
+# a build machine with AVX2 never executes natively. Only on amd64 hosts with qemu-user.
+QEMU_X86 := $(shell command -v qemu-x86_64 2>/dev/null)
+test-x86-baseline: build
+	@if [ "$(HOST_ARCH)" != amd64 ] || [ -z "$(QEMU_X86)" ]; then \
+	  echo "test-x86-baseline: needs an amd64 host with qemu-x86_64 (apt package qemu-user); skipped"; exit 0; fi; \
+	for t in fs_core_tests fs_sim_tests; do \
+	  echo "qemu-x86_64 -cpu Nehalem build/default/tests/cpp/$$t"; \
+	  $(QEMU_X86) -cpu Nehalem build/default/tests/cpp/$$t --gtest_brief=1; \
+	done
 
 test-asan: deps build-asan
 	ctest --preset asan -j $(NPROC)

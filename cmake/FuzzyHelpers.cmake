@@ -6,6 +6,23 @@ function(fs_warnings target)
                          -Wno-sign-conversion)
 endfunction()
 
+# fs_same_float_everywhere(target): the target's floating-point results the same on the robot (AArch64)
+#   as on the desktop (x86-64, whose baseline has no FMA): no fused multiply-add contraction, and on
+#   AArch64 Eigen's NEON packets without their explicit fused pmadd (vfmaq_f64, chosen when
+#   __ARM_FEATURE_FMA is defined; without it vmlaq_f64, a multiply and an add). Checked end to end by
+#   the golden tests (tests/cpp/golden.hpp), natively and under qemu-aarch64; docs/algorithm.md 7.
+#   PUBLIC: every target that includes the library's headers compiles their inline and template code
+#   (Eigen's products among it) the same way — the linker keeps one copy of each, from any object, and
+#   a test binary whose own files fused took the fused copy (a 1-ulp track_eval difference on AArch64).
+function(fs_same_float_everywhere target)
+  if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    target_compile_options(${target} PUBLIC -ffp-contract=off)
+    if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+      target_compile_options(${target} PUBLIC -U__ARM_FEATURE_FMA)
+    endif()
+  endif()
+endfunction()
+
 # fs_embed_text(<out_cpp> <symbol> <file>): turn a text file into a C++ source that defines
 #   extern const char* const <symbol>; so the firmware binary carries its own defaults
 #   (common/fis/fis.toml, common/config/*.toml) and needs no data files on the robot.
