@@ -2,9 +2,11 @@
 #
 #   make deps           install missing apt packages (sudo when not root) and the host venv
 #   make build          native Release build            (preset: default -> build/default)
-#   make build-aarch64  cross build of core + unit tests  (preset: aarch64 -> build/aarch64)
+#   make build-aarch64  cross build of the libraries, unit tests and the program (preset: aarch64 ->
+#                       build/aarch64; the program's arm64 libraries unpacked in build/arm64-debs)
 #   make test           deps, native build + ctest, pytest (tests/python), aarch64 build + ctest
-#                       under qemu, the core tests on a non-AVX2 x86-64 CPU (qemu -cpu Nehalem);
+#                       under qemu and the aarch64 program's outputs compared with the native ones,
+#                       the core tests on a non-AVX2 x86-64 CPU (qemu -cpu Nehalem);
 #                       runs every stage and exits non-zero if any failed
 #   make test-asan      native Debug build with ASan/UBSan + ctest (preset: asan)
 #   make demo           deps, build, then the closed-loop simulator run -> out/demo/report.html
@@ -81,8 +83,24 @@ build:
 	cmake --preset default
 	cmake --build --preset default -j $(NPROC)
 
+# The aarch64 build covers the program too: cmake/arm64-debs.sh unpacks the arm64 OpenCV, libcamera and
+# libgpiod (and what they load) into $(ARM64_DEBS) — Debian's arm64 OpenCV cannot be installed beside the
+# amd64 one — and the preset links against them (cmake/opencv-debs, the toolchain's FS_ARM64_DEBS). If the
+# download fails, the libraries and their unit tests are built alone, as before, and the stage says so.
+ARM64_DEBS := $(CURDIR)/build/arm64-debs
 build-aarch64:
-	cmake --preset aarch64
+	@app=OFF; \
+	if [ "$(HOST_ARCH)" != arm64 ]; then \
+	  if cmake/arm64-debs.sh $(ARM64_DEBS); then app=ON; \
+	  else echo "build-aarch64: WARNING: the program's arm64 libraries could not be fetched; building the libraries and their unit tests only"; fi; \
+	fi; \
+	if [ $$app = ON ]; then \
+	  PKG_CONFIG_LIBDIR=$(ARM64_DEBS)/usr/lib/aarch64-linux-gnu/pkgconfig:$(ARM64_DEBS)/usr/share/pkgconfig \
+	  PKG_CONFIG_SYSROOT_DIR=$(ARM64_DEBS) \
+	  cmake --preset aarch64 -DFS_BUILD_APP=ON -DFS_ARM64_DEBS=$(ARM64_DEBS) -DOpenCV_DIR=$(CURDIR)/cmake/opencv-debs; \
+	else \
+	  cmake --preset aarch64 -DFS_BUILD_APP=OFF; \
+	fi
 	cmake --build --preset aarch64 -j $(NPROC)
 
 build-asan:
@@ -117,8 +135,14 @@ ifeq ($(HOST_ARCH),arm64)
 test-aarch64:
 	@echo "test-aarch64: this host is arm64; test-native ran the unit tests on aarch64 natively"
 else
-test-aarch64: build-aarch64
+test-aarch64: build-aarch64 build deps-python
 	ctest --preset aarch64 -j $(NPROC)
+	@if [ -x build/aarch64/fuzzystereo ]; then \
+	  ldp=/usr/aarch64-linux-gnu/lib:$$(paste -sd: $(ARM64_DEBS)/lib-dirs); \
+	  $(VENV_PY) tests/aarch64/compare_program.py --native build/default/fuzzystereo \
+	    --arm64 "qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=$$ldp build/aarch64/fuzzystereo" \
+	    --work build/aarch64/compare; \
+	else echo "test-aarch64: the aarch64 program was not built (see build-aarch64); its comparison is skipped"; fi
 endif
 
 # The x86-64 baseline: the core and simulator unit tests (the golden pipeline hashes among them) under

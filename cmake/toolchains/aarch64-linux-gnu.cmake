@@ -40,6 +40,11 @@ set(CMAKE_CXX_FLAGS_INIT "-idirafter /usr/include")
 # libgomp in the compiler's implicit link directories, so find_package(OpenMP) works unchanged.
 # Under qemu it needs the LD_LIBRARY_PATH below like every threaded program.
 
+# No run-time search path in the binaries: under qemu the libraries come from LD_LIBRARY_PATH below,
+# and on the robot the program is built natively. (It also keeps CMake from warning that the unpacked
+# arm64 libraries of FS_ARM64_DEBS could hide multiarch ones of the same name.)
+set(CMAKE_SKIP_BUILD_RPATH ON)
+
 # Run target binaries (tests, gtest discovery) under qemu-user.
 #   -L /usr/aarch64-linux-gnu : the ELF interpreter and libraries of the cross toolchain.
 #   LD_LIBRARY_PATH           : with libc6:arm64 installed (pulled in by libgtest-dev:arm64), the
@@ -47,9 +52,24 @@ set(CMAKE_CXX_FLAGS_INIT "-idirafter /usr/include")
 #     a different glibc build than the loader; that mix hangs in pthread_create under qemu. Pin the
 #     loader's search to the cross toolchain's own libc/libstdc++/libgomp.
 # On an aarch64 host (building on the robot itself) the binaries run natively: no emulator.
+#   FS_ARM64_DEBS (set by `make build-aarch64` when it builds the program too): the arm64 OpenCV,
+#     libcamera and libgpiod that cmake/arm64-debs.sh unpacked there, after the toolchain's libraries.
+#     Their directories (FS_ARM64_DEBS/lib-dirs, written by the script) also go to the linker: the
+#     libraries the program links need theirs (GDAL's, BLAS ...) found at link time (-rpath-link).
+set(_fs_debs_dirs "")
+if(FS_ARM64_DEBS AND EXISTS "${FS_ARM64_DEBS}/lib-dirs")
+  file(STRINGS "${FS_ARM64_DEBS}/lib-dirs" _fs_debs_list)
+  list(JOIN _fs_debs_list ":" _fs_debs_dirs)
+  string(APPEND CMAKE_EXE_LINKER_FLAGS_INIT " -Wl,-rpath-link,${_fs_debs_dirs}")
+  string(APPEND CMAKE_SHARED_LINKER_FLAGS_INIT " -Wl,-rpath-link,${_fs_debs_dirs}")
+endif()
 find_program(FS_QEMU_AARCH64 qemu-aarch64 qemu-aarch64-static)
 if(FS_QEMU_AARCH64 AND NOT CMAKE_HOST_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+  set(_fs_ld_path /usr/${FS_CROSS_TRIPLE}/lib)
+  if(_fs_debs_dirs)
+    string(APPEND _fs_ld_path ":${_fs_debs_dirs}")
+  endif()
   set(CMAKE_CROSSCOMPILING_EMULATOR
       ${FS_QEMU_AARCH64} -L /usr/${FS_CROSS_TRIPLE}
-      -E LD_LIBRARY_PATH=/usr/${FS_CROSS_TRIPLE}/lib)
+      -E LD_LIBRARY_PATH=${_fs_ld_path})
 endif()

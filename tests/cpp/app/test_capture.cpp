@@ -676,8 +676,14 @@ TEST(CaptureOakd, ErrorsNameTheInterpreterTheScriptAndTheBridgesReason) {
   CameraParams p = fake_oakd("");
   p.oakd_python = "/nonexistent/python3";
   std::string e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
+#ifndef FS_TEST_EMULATED
   EXPECT_NE(e.find("cannot start '/nonexistent/python3'"), std::string::npos) << e;
   EXPECT_NE(e.find("camera.oakd_python"), std::string::npos) << e;
+#else
+  // Under qemu-user (the aarch64 build's tests) posix_spawn's vfork is emulated by a fork, so the
+  // child's failed exec cannot report back: the start fails later, as a bridge that exited 127.
+  EXPECT_NE(e.find("exit code 127"), std::string::npos) << e;
+#endif
   p = fake_oakd("");
   p.oakd_bridge = "/nonexistent/oakd_bridge.py";
   e = error_of([&] { open_camera(parse_source("oakd"), p)->start(); });
