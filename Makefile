@@ -99,7 +99,7 @@ build-aarch64:
 	  PKG_CONFIG_SYSROOT_DIR=$(ARM64_DEBS) \
 	  cmake --preset aarch64 -DFS_BUILD_APP=ON -DFS_ARM64_DEBS=$(ARM64_DEBS) -DOpenCV_DIR=$(CURDIR)/cmake/opencv-debs; \
 	else \
-	  cmake --preset aarch64 -DFS_BUILD_APP=OFF; \
+	  rm -f build/aarch64/fuzzystereo; cmake --preset aarch64 -DFS_BUILD_APP=OFF; \
 	fi
 	cmake --build --preset aarch64 -j $(NPROC)
 

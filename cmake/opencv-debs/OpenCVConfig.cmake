@@ -9,6 +9,10 @@ if(NOT FS_ARM64_DEBS OR NOT EXISTS "${FS_ARM64_DEBS}/.complete")
 endif()
 set(OpenCV_VERSION 4.6.0)
 set(OpenCV_INCLUDE_DIRS "${FS_ARM64_DEBS}/usr/include/aarch64-linux-gnu/opencv4" "${FS_ARM64_DEBS}/usr/include/opencv4")
+# The libraries these load (GDAL, BLAS, libav* ...) must be found at link time too: -rpath-link to every
+# directory of the unpacked tree that holds shared libraries (the script's lib-dirs), on each target.
+file(STRINGS "${FS_ARM64_DEBS}/lib-dirs" _fs_dirs)
+list(JOIN _fs_dirs ":" _fs_dirs)
 set(OpenCV_LIBS "")
 foreach(m core imgproc imgcodecs calib3d videoio features2d flann)
   set(_lib "${FS_ARM64_DEBS}/usr/lib/aarch64-linux-gnu/libopencv_${m}.so.406")
@@ -20,7 +24,8 @@ foreach(m core imgproc imgcodecs calib3d videoio features2d flann)
   if(NOT TARGET opencv_${m})
     add_library(opencv_${m} SHARED IMPORTED)
     set_target_properties(opencv_${m} PROPERTIES IMPORTED_LOCATION "${_lib}"
-                          INTERFACE_INCLUDE_DIRECTORIES "${OpenCV_INCLUDE_DIRS}")
+                          INTERFACE_INCLUDE_DIRECTORIES "${OpenCV_INCLUDE_DIRS}"
+                          INTERFACE_LINK_OPTIONS "-Wl,-rpath-link,${_fs_dirs}")
   endif()
   set(OpenCV_${m}_FOUND TRUE)
   list(APPEND OpenCV_LIBS opencv_${m})

@@ -54,14 +54,12 @@ set(CMAKE_SKIP_BUILD_RPATH ON)
 # On an aarch64 host (building on the robot itself) the binaries run natively: no emulator.
 #   FS_ARM64_DEBS (set by `make build-aarch64` when it builds the program too): the arm64 OpenCV,
 #     libcamera and libgpiod that cmake/arm64-debs.sh unpacked there, after the toolchain's libraries.
-#     Their directories (FS_ARM64_DEBS/lib-dirs, written by the script) also go to the linker: the
-#     libraries the program links need theirs (GDAL's, BLAS ...) found at link time (-rpath-link).
+#     Their directories are listed in FS_ARM64_DEBS/lib-dirs (written by the script; the linker gets
+#     them from cmake/opencv-debs/OpenCVConfig.cmake).
 set(_fs_debs_dirs "")
 if(FS_ARM64_DEBS AND EXISTS "${FS_ARM64_DEBS}/lib-dirs")
   file(STRINGS "${FS_ARM64_DEBS}/lib-dirs" _fs_debs_list)
   list(JOIN _fs_debs_list ":" _fs_debs_dirs)
-  string(APPEND CMAKE_EXE_LINKER_FLAGS_INIT " -Wl,-rpath-link,${_fs_debs_dirs}")
-  string(APPEND CMAKE_SHARED_LINKER_FLAGS_INIT " -Wl,-rpath-link,${_fs_debs_dirs}")
 endif()
 find_program(FS_QEMU_AARCH64 qemu-aarch64 qemu-aarch64-static)
 if(FS_QEMU_AARCH64 AND NOT CMAKE_HOST_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
