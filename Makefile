@@ -138,10 +138,8 @@ else
 test-aarch64: build-aarch64 build deps-python
 	ctest --preset aarch64 -j $(NPROC)
 	@if [ -x build/aarch64/fuzzystereo ]; then \
-	  ldp=/usr/aarch64-linux-gnu/lib:$$(paste -sd: $(ARM64_DEBS)/lib-dirs); \
 	  $(VENV_PY) tests/aarch64/compare_program.py --native build/default/fuzzystereo \
-	    --arm64 "qemu-aarch64 -L /usr/aarch64-linux-gnu -E LD_LIBRARY_PATH=$$ldp build/aarch64/fuzzystereo" \
-	    --work build/aarch64/compare; \
+	    --arm64 "build/aarch64/run-target build/aarch64/fuzzystereo" --work build/aarch64/compare; \
 	else echo "test-aarch64: the aarch64 program was not built (see build-aarch64); its comparison is skipped"; fi
 endif
 

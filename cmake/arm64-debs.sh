@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # arm64-debs.sh ROOT — the arm64 libraries the fuzzystereo *program* links (OpenCV, libcamera,
 # libgpiod) and everything they load at run time, unpacked under ROOT, for the cross build of the
-# program (preset aarch64-app) and its runs under qemu-aarch64 (`make test-aarch64-app`).
+# program (`make build-aarch64`: preset aarch64 with FS_BUILD_APP=ON) and its runs under qemu-aarch64
+# (`make test-aarch64`).
 #
 # Why not multiarch packages as for the core: Debian 12's arm64 OpenCV cannot be installed beside
 # the amd64 one (libgdal32 and others are not co-installable), so the packages are downloaded with
@@ -44,7 +45,8 @@ echo "arm64-debs: ${#want[@]} packages -> $ROOT"
 for deb in "$ROOT"/debs/*.deb; do dpkg -x "$deb" "$ROOT"; done
 # Every directory that holds a shared library: besides usr/lib/aarch64-linux-gnu, the BLAS/LAPACK
 # alternatives (usr/lib/aarch64-linux-gnu/blas, lapack; update-alternatives does not run here) and a
-# few libraries in usr/lib. The toolchain file passes them to the linker (-rpath-link) and to qemu.
+# few libraries in usr/lib. cmake/opencv-debs passes them to the linker (-rpath-link), the toolchain
+# file to qemu.
 find "$ROOT/usr/lib" "$ROOT/lib" -name '*.so*' \( -type f -o -type l \) -printf '%h\n' 2>/dev/null | sort -u > "$ROOT/lib-dirs"
 touch "$ROOT/.complete"
 echo "arm64-debs: done ($(du -sh "$ROOT" | cut -f1))"

@@ -1,5 +1,5 @@
 """The fuzzystereo program cross-built for aarch64 (preset aarch64, `make build-aarch64`) against the native
-build, output for output, run under qemu-aarch64 (`make test-aarch64-app`; docs/algorithm.md 7).
+build, output for output, run under qemu-aarch64 (`make test-aarch64`, part of `make test`; docs/algorithm.md 7).
 
 The unit tests' golden hashes (tests/golden/) hold the libraries to the same bits on both platforms; this
 holds the whole program to it — its OpenCV image I/O, rectification-free capture from the simulator, the
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -110,8 +111,7 @@ def main() -> int:
     a = ap.parse_args()
     builds = {"native": [a.native], "aarch64": shlex.split(a.arm64)}
     work = a.work
-    if work.exists():
-        subprocess.run(["rm", "-rf", str(work)], check=True)
+    shutil.rmtree(work, ignore_errors=True)
     problems: list[str] = []
     for name, exe in builds.items():
         d = work / name
