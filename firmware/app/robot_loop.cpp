@@ -211,10 +211,11 @@ struct LoopParams {
       near_track_m, near_track_max_age_s, near_track_reach_cap_m, static_track_lag_s, reach_travel_noise_sigmas,
       look_before_turn_m, moving_travel_sigmas, static_track_dwell_s, static_track_born_s, static_track_born_max_travel_m,
       meas_sigma_floor_m, edge_meas_sigma_scale, seen_max_age_s, static_meas_age_s, static_meas_share, stuck_after_s, stuck_progress_m,
-      stuck_exit_m, give_up_after_s, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m;
+      stuck_exit_m, give_up_after_s, blocked_confirm_range_m, memory_s, memory_cap_m, body_max_free_share, body_max_range_m, moving_direction_near_m,
+      moving_vacated_share, moving_vacated_window_s, moving_vacated_near_m;
   bool stuck_keep_unseen, stuck_speed_follows_heading, body_fit;
   robot::BodyFitParams body;
-  int moving_min_hits, static_track_cells, look_min_hits, static_meas_min_frames;
+  int moving_min_hits, moving_vacated_min_cells, static_track_cells, look_min_hits, static_meas_min_frames;
   bool static_meas_drop, static_track_keep_circles, static_track_no_growth, reach_travel_rate, reach_lost_tracks, reach_holding_robot, look_live_tracks,
       silhouette_centres, ray_centres;
   NearTrack near_track_moving;
@@ -228,6 +229,10 @@ LoopParams loop_params_from(const ConfigValues& v) {
   p.moving_window_s = v.num("loop.moving_window_s");
   p.moving_window_travel_m = v.num("loop.moving_window_travel_m");
   p.moving_direction_near_m = v.num("loop.moving_direction_near_m");
+  p.moving_vacated_share = v.num("loop.moving_vacated_share");
+  p.moving_vacated_window_s = v.num("loop.moving_vacated_window_s");
+  p.moving_vacated_near_m = v.num("loop.moving_vacated_near_m");
+  p.moving_vacated_min_cells = static_cast<int>(v.integer("loop.moving_vacated_min_cells"));
   p.moving_min_hits = static_cast<int>(v.integer("loop.moving_min_hits"));
   p.moving_max_age_s = v.num("loop.moving_max_age_s");
   p.plan_radius_m = v.num("loop.plan_radius_m");
@@ -591,7 +596,9 @@ LoopResult RobotLoop::run() {
   // The moving test's and the near-track safety net's settings (robot::moving_test, robot::near_track_circle).
   const robot::MovingTestParams moving_params{lp.moving_min_hits,        lp.moving_speed_mps,     lp.moving_max_age_s,
                                               lp.moving_min_travel_m,    lp.moving_travel_sigmas, lp.moving_window_s,
-                                              lp.moving_window_travel_m, lp.moving_direction_near_m};
+                                              lp.moving_window_travel_m, lp.moving_direction_near_m,
+                                              lp.moving_vacated_share,   lp.moving_vacated_near_m,
+                                              lp.moving_vacated_min_cells};
   const robot::NearTrackRule near_rule{lp.near_track_max_age_s, lp.near_track_m, lp.moving_speed_mps, lp.near_track_overlap};
   // This frame's moving-test verdicts of the confirmed tracks (id, verdict), for the record.
   // Each confirmed track's moving-test verdict and the inputs it was given (logged as tracks[].moving_test and
@@ -600,6 +607,11 @@ LoopResult RobotLoop::run() {
     int id;
     const char* verdict;
     robot::MovingTestInput in;
+    // The "vacated" evidence (logged as tracks[].mt.vac_1s / vac_2s, docs/robot.md "Session 53"): the share of the
+    // cells of the track's disc at its measured position 1 s / 2 s before its last measurement, outside its disc
+    // now, that the map has seen through since, and how many cells that was.
+    double vac[2] = {0.0, 0.0};
+    int vac_cells[2] = {0, 0};
   };
   std::vector<MovingVerdict> moving_verdict;
   const Detector detector(detect_params_from(I.cfg.values));
@@ -1129,10 +1141,19 @@ LoopResult RobotLoop::run() {
         mt_in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
         if (lp.moving_window_s > 0) mt_in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
         mt_in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
+        // [loop] moving_vacated_*: is the place the track left seen empty? (robot::moving_test, session 53)
+        if (lp.moving_vacated_share > 0)
+          mt_in.vacated = world_map.seen_free_share_outside(tr.meas_since(robot::s_to_ns(lp.moving_vacated_window_s)),
+                                                            tr.radius_m, tr.last_meas_p, tr.radius_m,
+                                                            -world_map.params().miss, mt_in.vacated_cells);
         const char* verdict = true_mover < 0 ? robot::moving_test(moving_params, mt_in)
                               : true_mover == 1 ? "mover"
                                                 : "oracle: static";
         moving_verdict.push_back({tr.id, verdict, mt_in});
+        for (int w = 0; w < 2; ++w)
+          moving_verdict.back().vac[w] = world_map.seen_free_share_outside(
+              tr.meas_since(robot::s_to_ns(w + 1.0)), tr.radius_m, tr.last_meas_p, tr.radius_m, -world_map.params().miss,
+              moving_verdict.back().vac_cells[w]);
         const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
         // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
@@ -1600,6 +1621,11 @@ LoopResult RobotLoop::run() {
           for (const auto& [key, win_s] : {std::pair{"travel_1s", 1.0}, std::pair{"travel_2s", 2.0}}) {
             const Vec2 d = tr.last_meas_p - tr.meas_since(robot::s_to_ns(win_s));
             trs.back()["mt"][key] = {d.x, d.y};
+          }
+          for (int w = 0; w < 2; ++w) {
+            const std::string key = "vac_" + std::to_string(w + 1) + "s";
+            // [cells seen through, cells]: exact integers, so the host's port divides as the firmware did
+            trs.back()["mt"][key] = {static_cast<int>(std::lround(mv.vac[w] * mv.vac_cells[w])), mv.vac_cells[w]};
           }
         }
     }

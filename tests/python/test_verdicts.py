@@ -97,3 +97,26 @@ def test_cli_on_a_firmware_record(firmware_bin, tmp_path):
     # a variant moves verdicts: without a hit minimum no row is "few hits"
     assert any(x["verdict"] == "few hits" for x in typed)
     assert not any(moving_test(x, min_hits=0) == "few hits" for x in typed)
+
+
+def test_port_of_the_vacated_override_on_a_firmware_record(firmware_bin, tmp_path):
+    # [loop] moving_vacated_share (session 53) on: the port gives the firmware's verdicts back from the logged
+    # "vacated" counts, and the override makes movers of tracks the defaults called otherwise.
+    cfg = tmp_path / "vac.toml"
+    cfg.write_text("[loop]\nmoving_vacated_share = 0.3\n")
+    rec = tmp_path / "rec"
+    p = subprocess.run([str(firmware_bin), "sim", "suite", "--count", "100", "--seed", "164", "--only", "10",
+                        "--config", str(cfg), "--record", str(rec)], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    feats = tmp_path / "f.csv"
+    p = subprocess.run([sys.executable, "-m", "fuzzyctl", "verdicts", str(rec), "--features", str(feats)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    with open(feats, newline="") as fh:
+        typed = [{k: (v if k in ("record", "truth", "verdict") else float(v)) for k, v in row.items()}
+                 for row in csv.DictReader(fh)]
+    assert typed
+    for x in typed:
+        assert moving_test(x, vacated_share=0.3) == x["verdict"], x
+    overridden = [x for x in typed if x["verdict"] == "mover" and moving_test(x) != "mover"]
+    assert overridden, "the override changed no verdict of this mover scenario"

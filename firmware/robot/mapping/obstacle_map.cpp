@@ -152,6 +152,23 @@ double ObstacleMap::seen_free_share(Vec2 c, double r, double l_free) const {
   return inside > 0 ? double(free) / inside : 0.0;
 }
 
+double ObstacleMap::seen_free_share_outside(Vec2 c, double r, Vec2 skip_c, double skip_r, double l_free,
+                                            int& cells) const {
+  cells = 0;
+  if (!init_) return 0.0;
+  int x0, y0, x1, y1;
+  cell_window(c, r, x0, y0, x1, y1);
+  int free = 0;
+  for (int iy = y0; iy <= y1; ++iy)
+    for (int ix = x0; ix <= x1; ++ix) {
+      const Vec2 centre{origin_.x + (ix + 0.5) * p_.cell_m, origin_.y + (iy + 0.5) * p_.cell_m};
+      if (norm(centre - c) > r || norm(centre - skip_c) <= skip_r) continue;
+      ++cells;
+      if (logodds_[static_cast<std::size_t>(iy) * n_ + ix] <= static_cast<float>(l_free)) ++free;
+    }
+  return cells > 0 ? double(free) / cells : 0.0;
+}
+
 int ObstacleMap::occupied_before(Vec2 c, double r, std::int64_t t_ns, int min_frames) const {
   if (!init_) return 0;
   int x0, y0, x1, y1;

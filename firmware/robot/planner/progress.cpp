@@ -43,13 +43,9 @@ bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, d
          (rule.overlap == NearTrackOverlap::kKeepUnsupported && !static_support);
 }
 
-const char* moving_test(const MovingTestParams& p, const MovingTestInput& in) {
-  if (in.static_measurement) return "static measurement";
-  if (in.static_support) return "static support";
-  if (in.hits < p.min_hits) return "few hits";
-  const double speed = norm(in.vel);
-  if (speed < p.min_speed_mps) return "slow";
-  if (in.age_s > p.max_age_s) return "old";
+namespace {
+// The travel conditions of the test ("short travel", "travel within noise", "direction"); "mover" when all pass.
+const char* travel_verdict(const MovingTestParams& p, const MovingTestInput& in, double speed) {
   const double dist = norm(in.travel);
   if (dist < p.min_travel_m || dist < p.min_speed_mps * in.life_s) return "short travel";
   if (p.travel_sigmas > 0 && dist < p.travel_sigmas * std::sqrt(in.end_var_m2)) return "travel within noise";
@@ -60,6 +56,20 @@ const char* moving_test(const MovingTestParams& p, const MovingTestInput& in) {
       return in.recent_travel.x * in.vel.x + in.recent_travel.y * in.vel.y >= 0.7 * rd * speed ? "mover" : "direction";
   }
   return in.travel.x * in.vel.x + in.travel.y * in.vel.y >= 0.7 * dist * speed ? "mover" : "direction";
+}
+}  // namespace
+
+const char* moving_test(const MovingTestParams& p, const MovingTestInput& in) {
+  if (in.static_measurement) return "static measurement";
+  if (in.static_support) return "static support";
+  if (in.hits < p.min_hits) return "few hits";
+  const double speed = norm(in.vel);
+  if (speed < p.min_speed_mps) return "slow";
+  if (in.age_s > p.max_age_s) return "old";
+  const char* verdict = travel_verdict(p, in, speed);
+  const bool vacated = p.vacated_share > 0 && in.robot_dist_m <= p.vacated_near_m &&
+                       in.vacated_cells >= p.vacated_min_cells && in.vacated >= p.vacated_share;
+  return vacated ? "mover" : verdict;
 }
 
 }  // namespace fs::robot

@@ -57,18 +57,33 @@ def _truth_of(tr: dict[str, Any], circles: list[dict[str, Any]], t: float, match
 
 FEATURE_COLUMNS = ("record", "frame", "t", "track", "truth", "robot_dist", "verdict", "static_meas", "static_support",
                    "hits", "speed", "vx", "vy", "tx", "ty", "life_s", "end_var", "age_s", "r", "t1x", "t1y", "t2x",
-                   "t2y")
+                   "t2y", "vac1", "vac1_cells", "vac2", "vac2_cells")
 
 
 MOVING_TEST_DEFAULTS = {"min_hits": 4, "min_speed_mps": 0.04, "max_age_s": 8.0, "min_travel_m": 0.3,
-                        "travel_sigmas": 0.0, "window_s": 0.0, "window_travel_m": 0.1, "direction_near_m": 1.5}
+                        "travel_sigmas": 0.0, "window_s": 0.0, "window_travel_m": 0.1, "direction_near_m": 1.5,
+                        "vacated_share": 0.0, "vacated_window_s": 1.0, "vacated_near_m": 3.0, "vacated_min_cells": 8}
 
 
 def moving_test(row: dict[str, Any], **params: float) -> str:
     """``robot::moving_test`` (firmware/robot/planner/progress.cpp) on one feature row: its verdict with the
     given parameters ([loop] moving_*; the defaults of common/config/default.toml otherwise). window_s may be
-    0, 1 or 2 (the recorded recent travels). Scores variants of the test on recorded inputs."""
+    0, 1 or 2 (the recorded recent travels), vacated_window_s 1 or 2 (the recorded "vacated" shares, session 53).
+    Scores variants of the test on recorded inputs."""
     p = {**MOVING_TEST_DEFAULTS, **params}
+    verdict = _moving_test_before_vacated(row, p)
+    if verdict in ("short travel", "travel within noise", "direction") and p["vacated_share"] > 0:
+        key = {1.0: "vac1", 2.0: "vac2"}.get(float(p["vacated_window_s"]))
+        if key is None:
+            raise FatalError(f"vacated_window_s: the records hold the vacated share over 1 s and 2 s only, "
+                             f"not {p['vacated_window_s']}")
+        if (row["robot_dist"] <= p["vacated_near_m"] and row[key + "_cells"] >= p["vacated_min_cells"]
+                and row[key] >= p["vacated_share"]):
+            return "mover"
+    return verdict
+
+
+def _moving_test_before_vacated(row: dict[str, Any], p: dict[str, float]) -> str:
     if row["static_meas"]:
         return "static measurement"
     if row["static_support"]:
@@ -120,11 +135,19 @@ def feature_rows(run_dirs: list[Path], match_m: float = 0.3) -> list[dict[str, A
                              "tx": mt["travel"][0], "ty": mt["travel"][1], "life_s": mt["life_s"],
                              "end_var": mt["end_var"], "age_s": tr.get("age_s", 0.0), "r": tr["r"],
                              "t1x": mt["travel_1s"][0], "t1y": mt["travel_1s"][1],
-                             "t2x": mt["travel_2s"][0], "t2y": mt["travel_2s"][1]})
+                             "t2x": mt["travel_2s"][0], "t2y": mt["travel_2s"][1],
+                             # the "vacated" evidence (session 53; records before it have none): the share
+                             # of the cells left that the map has seen through since, and their number
+                             **{key: value for w in (1, 2) for key, value in _vacated(mt, w)}})
     if not rows:
         raise FatalError("no confirmed track in these records carries the moving test's inputs (tracks[].mt, "
                          "recorded since session 47): record with a current `fuzzystereo sim suite --record DIR`")
     return rows
+
+
+def _vacated(mt: dict[str, Any], w: int) -> tuple[tuple[str, float], tuple[str, int]]:
+    free, cells = mt.get(f"vac_{w}s", [0, 0])
+    return (f"vac{w}", free / cells if cells else 0.0), (f"vac{w}_cells", cells)
 
 
 def verdicts(run_dirs: list[Path], match_m: float = 0.3, near_m: float = 2.0, cover_m: float = 0.3) -> dict[str, Any]:

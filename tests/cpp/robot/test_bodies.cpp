@@ -150,5 +150,36 @@ TEST(ObstacleMap, SeenFreeShareCountsTheCellsTheCameraSawThrough) {
   EXPECT_NEAR(ObstacleMap{}.seen_free_share({0, 0}, 1.0, -0.4), 0.0, 1e-12);  // before any scan
 }
 
+TEST(ObstacleMap, VacatedShareCountsOnlyTheCellsAnObstacleLeft) {
+  // An obstacle stood at (2, 0.4) (its front surface hit for 3 frames), then moved to (2, -0.4) and the camera
+  // sees through its old place for 4 frames (log-odds 3 x 0.85 - 4 x 0.4 < -0.4 only where it was never hit).
+  ObstacleMap map;
+  CameraScan s;
+  s.pose = {0, 0, 0};
+  s.focal_px = 40.0;
+  s.cx = 31.5;
+  s.min_range_m = 0.3;
+  s.free_range_m.assign(64, 1.7);  // the old body's front at x = 1.7 .. its back hidden
+  for (int k = 0; k < 3; ++k) {
+    s.hits.clear();
+    for (int i = -5; i <= 5; ++i) s.hits.push_back({1.72, 0.4 + 0.05 * i});
+    map.integrate(s);
+  }
+  s.hits.clear();
+  s.free_range_m.assign(64, 3.0);  // it left: free to 3 m everywhere
+  for (int k = 0; k < 4; ++k) map.integrate(s);
+  int cells = 0;
+  const double left = map.seen_free_share_outside({2.0, 0.4}, 0.3, {2.0, -0.4}, 0.3, -0.4, cells);
+  EXPECT_GT(cells, 100);  // pi 0.3^2 / 0.05^2 = 113 cells, none inside the present disc
+  EXPECT_GT(left, 0.8);   // all but the cells hit three times (log-odds 0.95 after four misses)
+  EXPECT_LT(left, 1.0);
+  // The present disc covering the earlier one: no cells left, no evidence.
+  EXPECT_EQ(map.seen_free_share_outside({2.0, 0.4}, 0.3, {2.0, 0.45}, 0.4, -0.4, cells), 0.0);
+  EXPECT_EQ(cells, 0);
+  // A place beyond what the camera saw free (behind a standing obstacle): cells, but none seen through.
+  EXPECT_EQ(map.seen_free_share_outside({4.0, 0.0}, 0.3, {4.0, 0.8}, 0.3, -0.4, cells), 0.0);
+  EXPECT_GT(cells, 100);
+}
+
 }  // namespace
 }  // namespace fs::robot

@@ -187,5 +187,42 @@ TEST(Progress, MovingTestVerdictsInOrderAndTheDirectionCheckNearTheRobot) {
   EXPECT_STREQ(moving_test(pn, t), "static support");
 }
 
+TEST(Progress, MovingTestVacatedPlaceOverridesOnlyTheTravelConditions) {
+  MovingTestParams p;
+  p.vacated_share = 0.3, p.vacated_near_m = 3.0, p.vacated_min_cells = 8;
+  MovingTestInput in;
+  in.hits = 6, in.vel = {0.3, 0.0}, in.age_s = 0.0, in.travel = {0.1, 0.0}, in.life_s = 4.0, in.robot_dist_m = 1.0;
+  EXPECT_STREQ(moving_test(p, in), "short travel");  // no evidence yet
+  in.vacated = 0.5, in.vacated_cells = 20;
+  EXPECT_STREQ(moving_test(p, in), "mover");
+  MovingTestParams off = p;
+  off.vacated_share = 0.0;
+  EXPECT_STREQ(moving_test(off, in), "short travel");  // off: today's test
+  MovingTestInput t = in;
+  t.vacated_cells = 7;  // too few cells left
+  EXPECT_STREQ(moving_test(p, t), "short travel");
+  t = in, t.vacated = 0.29;  // below the share
+  EXPECT_STREQ(moving_test(p, t), "short travel");
+  t = in, t.robot_dist_m = 3.5;  // too far from the robot
+  EXPECT_STREQ(moving_test(p, t), "short travel");
+  t = in, t.travel = {1.0, 0.0}, t.vel = {0.0, 0.3};  // the direction check fails: overridden too
+  EXPECT_STREQ(moving_test(off, t), "direction");
+  EXPECT_STREQ(moving_test(p, t), "mover");
+  p.travel_sigmas = 3.0;
+  t = in, t.travel = {1.0, 0.0}, t.end_var_m2 = 0.25;
+  EXPECT_STREQ(moving_test(p, t), "mover");  // "travel within noise" overridden
+  // The other conditions are not.
+  t = in, t.hits = 3;
+  EXPECT_STREQ(moving_test(p, t), "few hits");
+  t = in, t.vel = {0.03, 0.0};
+  EXPECT_STREQ(moving_test(p, t), "slow");
+  t = in, t.age_s = 9.0;
+  EXPECT_STREQ(moving_test(p, t), "old");
+  t = in, t.static_support = true;
+  EXPECT_STREQ(moving_test(p, t), "static support");
+  t = in, t.static_measurement = true;
+  EXPECT_STREQ(moving_test(p, t), "static measurement");
+}
+
 }  // namespace
 }  // namespace fs::robot

@@ -57,6 +57,11 @@ class ObstacleMap {
   // (log-odds <= l_free): free space the disc would wrongly claim (bodies.hpp: a circle fitted to the
   // inside of a concave group of cells covers space the camera saw free). 0 for an empty disc.
   double seen_free_share(Vec2 c, double r, double l_free) const;
+  // The same over the cells of the disc (c, r) that lie outside the disc (skip_c, skip_r) — where an
+  // obstacle was and is no longer, when (c, r) is its earlier place and (skip_c, skip_r) its present one
+  // (the "vacated" evidence of motion, docs/robot.md "Session 53"). `cells` receives the number of cells
+  // counted; 0 (and a share of 0) when the present disc covers the earlier one.
+  double seen_free_share_outside(Vec2 c, double r, Vec2 skip_c, double skip_r, double l_free, int& cells) const;
   // Occupied cells whose mean hit point lies within r of c and that have been occupied without a
   // break since a scan at or before t_ns (a cell that drops below l_occupied starts again).
   // Tells a static obstacle from a mover at the same place: a mover's surface cells become

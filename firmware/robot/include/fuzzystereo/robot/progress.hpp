@@ -102,10 +102,18 @@ bool near_track_circle(const NearTrackRule& rule, double age_s, double dist_m, d
 //   "direction"            its velocity is more than ~45 deg (cos < 0.7) off its travel — the whole-life
 //                          travel, or with window_s > 0 the travel over the last window_s when that is at
 //                          least window_travel_m; skipped within direction_near_m of the robot (session 41).
+// With vacated_share > 0 (session 53, off by default) a track within vacated_near_m of the robot that fails only
+// one of the travel conditions ("short travel", "travel within noise", "direction") is a mover all the same when
+// the place it left is seen empty: of the cells of its disc at its measured position [loop] moving_vacated_window_s
+// earlier that lie outside its disc now (at least vacated_min_cells of them), at least vacated_share are cells the
+// map has seen through since (ObstacleMap::seen_free_share_outside). A static obstacle's place stays occupied (or
+// hidden behind it); a mover's is free once the camera looks through it.
 struct MovingTestParams {
   int min_hits = 4;
   double min_speed_mps = 0.04, max_age_s = 8.0, min_travel_m = 0.3, travel_sigmas = 0.0, window_s = 0.0,
          window_travel_m = 0.1, direction_near_m = 0.0;
+  double vacated_share = 0.0, vacated_near_m = 3.0;
+  int vacated_min_cells = 8;
 };
 struct MovingTestInput {
   bool static_measurement = false;  // the last measurement was found static (Track::last_meas_static)
@@ -118,6 +126,8 @@ struct MovingTestInput {
   double end_var_m2 = 0.0;     // first + last measurement's position variance
   Vec2 recent_travel{};        // last measured position - the one window_s before (used with window_s > 0)
   double robot_dist_m = 0.0;   // from the track's estimate to the robot
+  double vacated = 0.0;        // the "vacated" share (MovingTestParams::vacated_share) ...
+  int vacated_cells = 0;       // ... over this many cells
 };
 const char* moving_test(const MovingTestParams& p, const MovingTestInput& in);
 
