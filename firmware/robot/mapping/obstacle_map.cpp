@@ -138,18 +138,8 @@ std::vector<CircleObstacle> ObstacleMap::obstacles(Vec2 centre, double radius_m,
 }
 
 double ObstacleMap::seen_free_share(Vec2 c, double r, double l_free) const {
-  if (!init_) return 0.0;
-  int x0, y0, x1, y1;
-  cell_window(c, r, x0, y0, x1, y1);
-  int inside = 0, free = 0;
-  for (int iy = y0; iy <= y1; ++iy)
-    for (int ix = x0; ix <= x1; ++ix) {
-      const Vec2 centre{origin_.x + (ix + 0.5) * p_.cell_m, origin_.y + (iy + 0.5) * p_.cell_m};
-      if (norm(centre - c) > r) continue;
-      ++inside;
-      if (logodds_[static_cast<std::size_t>(iy) * n_ + ix] <= static_cast<float>(l_free)) ++free;
-    }
-  return inside > 0 ? double(free) / inside : 0.0;
+  int cells = 0;
+  return seen_free_share_outside(c, r, c, -1.0, l_free, cells);  // a negative radius skips no cell
 }
 
 double ObstacleMap::seen_free_share_outside(Vec2 c, double r, Vec2 skip_c, double skip_r, double l_free,

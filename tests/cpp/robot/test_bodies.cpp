@@ -132,14 +132,20 @@ TEST(FitBodies, ALongWallAlongYIsOneGroupWithoutABody) {
   EXPECT_EQ(bodies[0].cells, 12);
 }
 
-TEST(ObstacleMap, SeenFreeShareCountsTheCellsTheCameraSawThrough) {
-  ObstacleMap map;
+// A 64-column camera at the origin looking along +x that sees free space to free_m in every column.
+CameraScan forward_scan(double free_m) {
   CameraScan s;
   s.pose = {0, 0, 0};
   s.focal_px = 40.0;
   s.cx = 31.5;
   s.min_range_m = 0.3;
-  s.free_range_m.assign(64, 3.0);  // every column sees free space to 3 m
+  s.free_range_m.assign(64, free_m);
+  return s;
+}
+
+TEST(ObstacleMap, SeenFreeShareCountsTheCellsTheCameraSawThrough) {
+  ObstacleMap map;
+  const CameraScan s = forward_scan(3.0);  // every column sees free space to 3 m
   for (int k = 0; k < 3; ++k) map.integrate(s);  // log-odds -1.2 there
   // A disc inside the seen-free range: all free; one beyond it: none; straddling: part.
   EXPECT_NEAR(map.seen_free_share({2.0, 0.0}, 0.3, -0.4), 1.0, 1e-9);
@@ -154,12 +160,7 @@ TEST(ObstacleMap, VacatedShareCountsOnlyTheCellsAnObstacleLeft) {
   // An obstacle stood at (2, 0.4) (its front surface hit for 3 frames), then moved to (2, -0.4) and the camera
   // sees through its old place for 4 frames (log-odds 3 x 0.85 - 4 x 0.4 < -0.4 only where it was never hit).
   ObstacleMap map;
-  CameraScan s;
-  s.pose = {0, 0, 0};
-  s.focal_px = 40.0;
-  s.cx = 31.5;
-  s.min_range_m = 0.3;
-  s.free_range_m.assign(64, 1.7);  // the old body's front at x = 1.7 .. its back hidden
+  CameraScan s = forward_scan(1.7);  // the old body's front at x = 1.7 .. its back hidden
   for (int k = 0; k < 3; ++k) {
     s.hits.clear();
     for (int i = -5; i <= 5; ++i) s.hits.push_back({1.72, 0.4 + 0.05 * i});
