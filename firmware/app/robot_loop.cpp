@@ -1141,19 +1141,28 @@ LoopResult RobotLoop::run() {
         mt_in.end_var_m2 = tr.first_meas_var + tr.last_meas_var;
         if (lp.moving_window_s > 0) mt_in.recent_travel = tr.last_meas_p - tr.meas_since(robot::s_to_ns(lp.moving_window_s));
         mt_in.robot_dist_m = robot::norm(tr.pos() - pose.pos());
-        // [loop] moving_vacated_*: is the place the track left seen empty? (robot::moving_test, session 53)
-        if (lp.moving_vacated_share > 0)
-          mt_in.vacated = world_map.seen_free_share_outside(tr.meas_since(robot::s_to_ns(lp.moving_vacated_window_s)),
-                                                            tr.radius_m, tr.last_meas_p, tr.radius_m,
-                                                            -world_map.params().miss, mt_in.vacated_cells);
+        // The "vacated" evidence: is the place the track left window_s ago seen empty? Logged for 1 s and 2 s;
+        // [loop] moving_vacated_* hands it to robot::moving_test (session 53).
+        const auto vacated = [&](double window_s, int& cells) {
+          return world_map.seen_free_share_outside(tr.meas_since(robot::s_to_ns(window_s)), tr.radius_m,
+                                                   tr.last_meas_p, tr.radius_m, -world_map.params().miss, cells);
+        };
+        MovingVerdict mv{tr.id, nullptr, {}};
+        for (int w = 0; w < 2; ++w) mv.vac[w] = vacated(w + 1.0, mv.vac_cells[w]);
+        if (lp.moving_vacated_share > 0) {
+          const double ws = lp.moving_vacated_window_s;
+          if (ws == 1.0 || ws == 2.0) {  // one of the logged windows: the same query, not repeated
+            const int w = ws == 1.0 ? 0 : 1;
+            mt_in.vacated = mv.vac[w], mt_in.vacated_cells = mv.vac_cells[w];
+          } else {
+            mt_in.vacated = vacated(ws, mt_in.vacated_cells);
+          }
+        }
         const char* verdict = true_mover < 0 ? robot::moving_test(moving_params, mt_in)
                               : true_mover == 1 ? "mover"
                                                 : "oracle: static";
-        moving_verdict.push_back({tr.id, verdict, mt_in});
-        for (int w = 0; w < 2; ++w)
-          moving_verdict.back().vac[w] = world_map.seen_free_share_outside(
-              tr.meas_since(robot::s_to_ns(w + 1.0)), tr.radius_m, tr.last_meas_p, tr.radius_m, -world_map.params().miss,
-              moving_verdict.back().vac_cells[w]);
+        mv.verdict = verdict, mv.in = mt_in;
+        moving_verdict.push_back(mv);
         const bool is_mover = std::strcmp(verdict, "mover") == 0;
         if (is_mover) mover_ids.push_back(tr.id);
         // stuck_keep_unseen: only tracks in the camera's view lose their circles (robot::stuck_drops_track_circle).
