@@ -6,6 +6,34 @@ function(fs_warnings target)
                          -Wno-sign-conversion)
 endfunction()
 
+# fs_precompile_headers(target <header>...): precompile the heavy third-party and standard headers
+#   most sources of a target include (OpenCV, nlohmann/json, CLI11, Eigen, GoogleTest). Compile time
+#   only — `make test` builds three configurations on CI's two cores, and in the program and the tests
+#   a third of a source's compile time was parsing these headers. Every source still includes what it
+#   uses: configure with -DFS_PCH=OFF to build without them (checks that no source leans on the PCH).
+function(fs_precompile_headers target)
+  if(FS_PCH)
+    target_precompile_headers(${target} PRIVATE ${ARGN})
+  endif()
+endfunction()
+
+# fs_glue_sources(file...) / fs_glue_target(target): compile glue code — the command line and the test
+#   programs — at -O1 in optimised builds (the algorithm libraries keep the build type's -O3). Compile
+#   time only: GCC's -O levels do not change floating-point results (no -ffast-math; contraction is off,
+#   fs_same_float_everywhere), which the golden hash tests check natively and under qemu-aarch64; and
+#   these sources' loops call the libraries, so the program's speed is unchanged (`fuzzystereo bench`).
+#   Configure with -DFS_GLUE_O1=OFF to build them at the build type's level.
+function(fs_glue_sources)
+  if(FS_GLUE_O1 AND CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    set_property(SOURCE ${ARGN} APPEND PROPERTY COMPILE_OPTIONS $<$<CONFIG:Release,RelWithDebInfo>:-O1>)
+  endif()
+endfunction()
+function(fs_glue_target target)
+  if(FS_GLUE_O1 AND CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    target_compile_options(${target} PRIVATE $<$<CONFIG:Release,RelWithDebInfo>:-O1>)
+  endif()
+endfunction()
+
 # fs_same_float_everywhere(target): the target's floating-point results the same on the robot (AArch64)
 #   as on the desktop (x86-64, whose baseline has no FMA): no fused multiply-add contraction, and on
 #   AArch64 Eigen's NEON packets without their explicit fused pmadd (vfmaq_f64, chosen when
