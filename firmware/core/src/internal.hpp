@@ -41,6 +41,9 @@
 // cpu_has_avx2(): ESR's sorted block entropy on CPUs without AVX-512BW (vpshufb table lookups).
 #define FS_TARGET_AVX2 __attribute__((target("avx2")))
 #define FS_HAVE_AVX2_DISPATCH 1
+// The same with POPCNT, for an AVX2 kernel whose scalar edges count bits (boundary/'s Hamming rows),
+// picked at run time with cpu_has_avx2_popcnt().
+#define FS_TARGET_AVX2_POPCNT __attribute__((target("avx2,popcnt")))
 #else
 #define FS_TARGET_CLONES_V3
 #define FS_TARGET_CLONES
@@ -85,6 +88,16 @@ inline bool cpu_has_avx512bw() {
 inline bool cpu_has_avx2() {
 #if defined(FS_HAVE_AVX2_DISPATCH)
   static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+#else
+  return false;
+#endif
+}
+
+// The CPU runs FS_TARGET_AVX2_POPCNT code; checked once.
+inline bool cpu_has_avx2_popcnt() {
+#if defined(FS_HAVE_AVX2_DISPATCH)
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
   return has;
 #else
   return false;

@@ -174,6 +174,9 @@ TEST(Boundary, RefinementMatchesScalarReferenceOnRandomImages) {
     const ImageI16 got = refine_boundaries(disp, seg, cl, cr, c.direction, p, &switched);
     const ImageI16 want = refine_reference(disp, cl, cr, c.direction, p, 24);
     EXPECT_EQ(got.data, want.data) << c.w << "x" << c.h << " region " << c.region << " window " << c.window;
+    p.bit_count = BitCount::kPortable;  // the portable bit count too (the CPU's vector one above)
+    EXPECT_EQ(refine_boundaries(disp, seg, cl, cr, c.direction, p, nullptr).data, want.data)
+        << "portable count, " << c.w << "x" << c.h << " region " << c.region << " window " << c.window;
     for (const auto v : switched.data) wide_switched += v;
   }
   EXPECT_GT(wide_switched, 1000);

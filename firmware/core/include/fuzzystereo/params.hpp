@@ -44,6 +44,11 @@ struct FisParams {
 
 // Segment-boundary refinement of the two WTA maps before eq. (13) (not in the paper;
 // docs/algorithm.md 4b).
+// How the boundary refinement counts census bits (boundary/; the same counts either way): kAuto the
+// fastest count the CPU has (AVX-512 VPOPCNTDQ, AVX2 nibble lookups, else the portable SWAR count);
+// kPortable always the portable one (tests: a CPU with a vector count checks the portable code too).
+enum class BitCount { kAuto, kPortable };
+
 struct BoundaryParams {
   bool enabled = false;
   int census_radius = 2;  // census window (2 r + 1)^2 - 1 bits, r <= 2 (24 bits)
@@ -52,6 +57,7 @@ struct BoundaryParams {
   int step = 4;           // [px] candidates are read at +-step and +-2 step along the row and column
   int min_jump = 1;       // [px] only disparities this far from the pixel's own are candidates
   int passes = 1;
+  BitCount bit_count = BitCount::kAuto;  // not a config field (the result does not depend on it)
 };
 
 struct LrParams {

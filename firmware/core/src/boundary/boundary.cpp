@@ -78,13 +78,17 @@ struct SegScratch {
   std::vector<std::uint16_t> vsum;         // their column sums
 };
 
+// How the lane path counts the bits of census differences: AVX-512 VPOPCNTDQ, AVX2 nibble lookups,
+// or the portable SWAR count (SSE2 / NEON / any CPU). All three give the same counts.
+enum class CountIsa { kSwar, kAvx2, kVpopcnt };
+
 struct Ctx {
   const ImageI16* cur;
   const ImageU32* cref;
   const ImageU32* cother;
   ImageI16* next;
   int direction, r, bits, margin, jump, step;
-  bool vpopcnt;  // the CPU has AVX-512 VPOPCNTDQ (lane tables' Hamming rows), decided once per refinement
+  CountIsa isa;  // the lane tables' Hamming rows: how this CPU counts bits, decided once per refinement
 };
 
 // The candidates of pixel (x, y), in the order of the scalar reference: the map's values at -k, +k
@@ -248,6 +252,14 @@ template <class V32>
 [[gnu::always_inline]] inline U16L popcount16(U32L x) { return __builtin_convertvector(popcount_swar(x), U16L); }
 [[gnu::always_inline]] inline U16H popcount16(U32H x) { return __builtin_convertvector(popcount_swar(x), U16H); }
 
+// The Hamming rows' whole chunk (kLanes counts of a[i] ^ b[i]) and half chunk (kHalf counts).
+[[gnu::always_inline]] inline void count_chunk(std::uint16_t* out, const std::uint32_t* a, const std::uint32_t* b) {
+  store(out, popcount16(load<U32L>(a) ^ load<U32L>(b)));
+}
+[[gnu::always_inline]] inline void count_half(std::uint16_t* out, const std::uint32_t* a, const std::uint32_t* b) {
+  store(out, popcount16(load<U32H>(a) ^ load<U32H>(b)));
+}
+
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
 // The same with AVX-512 VPOPCNTDQ (inlined only into functions compiled with FS_TARGET_VPOPCNT).
 FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16L popcount16_vpopcnt(U32L x) {
@@ -255,6 +267,49 @@ FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16L popcount16_vpopcnt(U32L x) 
 }
 FS_TARGET_VPOPCNT [[gnu::always_inline]] inline U16H popcount16_vpopcnt(U32H x) {
   return __builtin_convertvector(std::bit_cast<U32H>(_mm256_popcnt_epi32(std::bit_cast<__m256i>(x))), U16H);
+}
+FS_TARGET_VPOPCNT [[gnu::always_inline]] inline void count_chunk_vpopcnt(std::uint16_t* out, const std::uint32_t* a,
+                                                                      const std::uint32_t* b) {
+  store(out, popcount16_vpopcnt(load<U32L>(a) ^ load<U32L>(b)));
+}
+FS_TARGET_VPOPCNT [[gnu::always_inline]] inline void count_half_vpopcnt(std::uint16_t* out, const std::uint32_t* a,
+                                                                     const std::uint32_t* b) {
+  store(out, popcount16_vpopcnt(load<U32H>(a) ^ load<U32H>(b)));
+}
+#endif
+
+#if defined(FS_HAVE_AVX2_DISPATCH)
+// The same with AVX2, which has no vector bit count: each byte's count by two nibble lookups
+// (vpshufb into a 16-entry table), summed over the four bytes of a 32-bit lane by two multiply-adds,
+// then narrowed to 16 bits (inlined only into functions compiled with FS_TARGET_AVX2_POPCNT). About
+// half the instructions of the SWAR count, whose 32-bit multiply AVX2 runs slowly.
+FS_TARGET_AVX2_POPCNT [[gnu::always_inline]] inline __m256i popcount32_avx2(__m256i x) {
+  const __m256i table = _mm256_setr_epi8(0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4,  //
+                                         0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4);
+  const __m256i nibble = _mm256_set1_epi8(0x0F);
+  const __m256i lo = _mm256_and_si256(x, nibble), hi = _mm256_and_si256(_mm256_srli_epi16(x, 4), nibble);
+  const __m256i bytes = _mm256_add_epi8(_mm256_shuffle_epi8(table, lo), _mm256_shuffle_epi8(table, hi));
+  const __m256i pairs = _mm256_maddubs_epi16(bytes, _mm256_set1_epi8(1));  // bytes 0+1, 2+3 (<= 16)
+  return _mm256_madd_epi16(pairs, _mm256_set1_epi16(1));                   // the lane's count (<= 32)
+}
+// The Hamming rows' whole chunk (kLanes counts of a[i] ^ b[i]) and half chunk, on whole registers
+// loaded and stored directly (through the gcc vector types, gcc moved the halves through the stack).
+FS_TARGET_AVX2_POPCNT [[gnu::always_inline]] inline void count_chunk_avx2(std::uint16_t* out, const std::uint32_t* a,
+                                                                          const std::uint32_t* b) {
+  const __m256i* va = reinterpret_cast<const __m256i*>(a);
+  const __m256i* vb = reinterpret_cast<const __m256i*>(b);
+  const __m256i c0 = popcount32_avx2(_mm256_xor_si256(_mm256_loadu_si256(va), _mm256_loadu_si256(vb)));
+  const __m256i c1 = popcount32_avx2(_mm256_xor_si256(_mm256_loadu_si256(va + 1), _mm256_loadu_si256(vb + 1)));
+  // packus interleaves the 128-bit halves (c0 lo, c1 lo, c0 hi, c1 hi); the permute restores the order.
+  const __m256i packed = _mm256_permute4x64_epi64(_mm256_packus_epi32(c0, c1), 0xD8);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), packed);
+}
+FS_TARGET_AVX2_POPCNT [[gnu::always_inline]] inline void count_half_avx2(std::uint16_t* out, const std::uint32_t* a,
+                                                                         const std::uint32_t* b) {
+  const __m256i c = popcount32_avx2(_mm256_xor_si256(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(a)),
+                                                     _mm256_loadu_si256(reinterpret_cast<const __m256i*>(b))));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out),
+                   _mm_packus_epi32(_mm256_castsi256_si128(c), _mm256_extracti128_si256(c, 1)));
 }
 #endif
 
@@ -361,7 +416,7 @@ bool lane_path_fits(int x0, int x1, int w, int k, int r) {
 // (rows clamped to the image as the reference does, columns inside it by lane_path_fits; a
 // partner outside the other image counts `bits`). Two variants that differ in the bit count of a
 // whole chunk only.
-#define FS_HAMMING_ROWS(NAME, ATTR, POPCOUNT)                                                              \
+#define FS_HAMMING_ROWS(NAME, ATTR, COUNT_CHUNK, COUNT_HALF)                                                              \
   ATTR void NAME(const Ctx& c, int X0, int Y0, int chunks, int He, int d, std::uint16_t* ham) {         \
     const int w = c.cref->width, h = c.cref->height;                                                      \
     const int Wt = chunks * kLanes, Wh = Wt + kHalf;                                                      \
@@ -375,7 +430,7 @@ bool lane_path_fits(int x0, int x1, int w, int k, int r) {
       for (int q = 0; q < chunks; ++q) {                                                                  \
         const int xs = X0 + q * kLanes + shift; /* the partner of the chunk's first column */             \
         if (xs >= 0 && xs + kLanes <= w) {                                                                \
-          store(out + q * kLanes, POPCOUNT(load<U32L>(a + q * kLanes) ^ load<U32L>(bo + xs)));           \
+          COUNT_CHUNK(out + q * kLanes, a + q * kLanes, bo + xs);                                         \
         } else {                                                                                          \
           for (int i = 0; i < kLanes; ++i) {                                                              \
             const int xo = xs + i;                                                                        \
@@ -388,7 +443,7 @@ bool lane_path_fits(int x0, int x1, int w, int k, int r) {
       const int xt = Wt;                                                                                  \
       const int xs = X0 + xt + shift;                                                                     \
       if (xs >= 0 && xs + kHalf <= w) {                                                                   \
-        store(out + xt, POPCOUNT(load<U32H>(a + xt) ^ load<U32H>(bo + xs)));                              \
+        COUNT_HALF(out + xt, a + xt, bo + xs);                                                            \
       } else {                                                                                            \
         for (int i = 0; i < kHalf; ++i) {                                                                 \
           const int xo = xs + i;                                                                          \
@@ -397,9 +452,12 @@ bool lane_path_fits(int x0, int x1, int w, int k, int r) {
       }                                                                                                   \
     }                                                                                                     \
   }
-FS_HAMMING_ROWS(hamming_rows, FS_TARGET_CLONES_V3, popcount16)
+FS_HAMMING_ROWS(hamming_rows, FS_TARGET_CLONES_V3, count_chunk, count_half)
+#if defined(FS_HAVE_AVX2_DISPATCH)
+FS_HAMMING_ROWS(hamming_rows_avx2, FS_TARGET_AVX2_POPCNT, count_chunk_avx2, count_half_avx2)
+#endif
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
-FS_HAMMING_ROWS(hamming_rows_vpopcnt, FS_TARGET_VPOPCNT, popcount16_vpopcnt)
+FS_HAMMING_ROWS(hamming_rows_vpopcnt, FS_TARGET_VPOPCNT, count_chunk_vpopcnt, count_half_vpopcnt)
 #endif
 #undef FS_HAMMING_ROWS
 
@@ -411,8 +469,13 @@ template <int N>
   const int r = n / 2;
   const int Wh = chunks * kLanes + kHalf;  // Hamming row width (>= chunks * kLanes + n - 1)
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
-  if (c.vpopcnt)
+  if (c.isa == CountIsa::kVpopcnt)
     hamming_rows_vpopcnt(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
+  else
+#endif
+#if defined(FS_HAVE_AVX2_DISPATCH)
+  if (c.isa == CountIsa::kAvx2)
+    hamming_rows_avx2(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
   else
 #endif
     hamming_rows(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
@@ -538,11 +601,15 @@ ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const 
   c.direction = direction, c.r = p.window / 2, c.bits = side * side - 1;  // a census code's bit count
   c.margin = static_cast<int>(std::lround(p.margin * p.window * p.window));  // [bits per window]
   c.jump = p.min_jump * kDispScale, c.step = p.step;
-#if defined(FS_HAVE_VPOPCNT_DISPATCH)
-  c.vpopcnt = __builtin_cpu_supports("avx512vpopcntdq");
-#else
-  c.vpopcnt = false;
+  c.isa = CountIsa::kSwar;
+  if (p.bit_count == BitCount::kAuto) {
+#if defined(FS_HAVE_AVX2_DISPATCH)
+    if (detail::cpu_has_avx2_popcnt()) c.isa = CountIsa::kAvx2;
 #endif
+#if defined(FS_HAVE_VPOPCNT_DISPATCH)
+    if (__builtin_cpu_supports("avx512vpopcntdq")) c.isa = CountIsa::kVpopcnt;
+#endif
+  }
   // Tables are indexed by rounded disparity; every candidate is a value of the input map.
   const int bins = detect::disparity_bins(disp);
   ImageI16 out = disp;  // each pass reads the previous one's map and writes a copy of it
