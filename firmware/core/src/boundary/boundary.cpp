@@ -11,6 +11,10 @@
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
+#if defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+#define FS_HAVE_NEON_COUNT 1
+#endif
 #include <stdexcept>
 #include <string>
 
@@ -79,8 +83,8 @@ struct SegScratch {
 };
 
 // How the lane path counts the bits of census differences: AVX-512 VPOPCNTDQ, AVX2 nibble lookups,
-// or the portable SWAR count (SSE2 / NEON / any CPU). All three give the same counts.
-enum class CountIsa { kSwar, kAvx2, kVpopcnt };
+// NEON byte counts (AArch64), or the portable SWAR count (any CPU). All give the same counts.
+enum class CountIsa { kSwar, kAvx2, kVpopcnt, kNeon };
 
 struct Ctx {
   const ImageI16* cur;
@@ -313,6 +317,24 @@ FS_TARGET_AVX2_POPCNT [[gnu::always_inline]] inline void count_half_avx2(std::ui
 }
 #endif
 
+#if defined(FS_HAVE_NEON_COUNT)
+// The same on AArch64: NEON counts each byte's bits (CNT); a pairwise widening add gives each 16-bit
+// half's count and a pairwise add of two registers each 32-bit lane's, already narrowed and in order
+// (the SWAR count needs a dozen instructions and a multiply per register instead).
+[[gnu::always_inline]] inline uint16x8_t count8_neon(const std::uint32_t* a, const std::uint32_t* b) {
+  const uint16x8_t lo = vpaddlq_u8(vcntq_u8(vreinterpretq_u8_u32(veorq_u32(vld1q_u32(a), vld1q_u32(b)))));
+  const uint16x8_t hi = vpaddlq_u8(vcntq_u8(vreinterpretq_u8_u32(veorq_u32(vld1q_u32(a + 4), vld1q_u32(b + 4)))));
+  return vpaddq_u16(lo, hi);  // lanes 0-3 from a[0..3], 4-7 from a[4..7]
+}
+[[gnu::always_inline]] inline void count_chunk_neon(std::uint16_t* out, const std::uint32_t* a, const std::uint32_t* b) {
+  vst1q_u16(out, count8_neon(a, b));
+  vst1q_u16(out + 8, count8_neon(a + 8, b + 8));
+}
+[[gnu::always_inline]] inline void count_half_neon(std::uint16_t* out, const std::uint32_t* a, const std::uint32_t* b) {
+  vst1q_u16(out, count8_neon(a, b));
+}
+#endif
+
 struct LaneChunk {
   const std::int16_t* v[9];          // the map at the chunk's pixels (v[0]) and at its 8 candidate places
   const Run* runs;                   // the segment's runs on the chunk's row
@@ -456,6 +478,9 @@ FS_HAMMING_ROWS(hamming_rows, FS_TARGET_CLONES_V3, count_chunk, count_half)
 #if defined(FS_HAVE_AVX2_DISPATCH)
 FS_HAMMING_ROWS(hamming_rows_avx2, FS_TARGET_AVX2_POPCNT, count_chunk_avx2, count_half_avx2)
 #endif
+#if defined(FS_HAVE_NEON_COUNT)
+FS_HAMMING_ROWS(hamming_rows_neon, , count_chunk_neon, count_half_neon)
+#endif
 #if defined(FS_HAVE_VPOPCNT_DISPATCH)
 FS_HAMMING_ROWS(hamming_rows_vpopcnt, FS_TARGET_VPOPCNT, count_chunk_vpopcnt, count_half_vpopcnt)
 #endif
@@ -476,6 +501,11 @@ template <int N>
 #if defined(FS_HAVE_AVX2_DISPATCH)
   if (c.isa == CountIsa::kAvx2)
     hamming_rows_avx2(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
+  else
+#endif
+#if defined(FS_HAVE_NEON_COUNT)
+  if (c.isa == CountIsa::kNeon)
+    hamming_rows_neon(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
   else
 #endif
     hamming_rows(c, x0 - r, y0 - r, chunks, bh + 2 * r, d, ham);
@@ -603,6 +633,9 @@ ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const 
   c.jump = p.min_jump * kDispScale, c.step = p.step;
   c.isa = CountIsa::kSwar;
   if (p.bit_count == BitCount::kAuto) {
+#if defined(FS_HAVE_NEON_COUNT)
+    c.isa = CountIsa::kNeon;
+#endif
 #if defined(FS_HAVE_AVX2_DISPATCH)
     if (detail::cpu_has_avx2_popcnt()) c.isa = CountIsa::kAvx2;
 #endif
