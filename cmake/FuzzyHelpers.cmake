@@ -7,10 +7,10 @@ function(fs_warnings target)
 endfunction()
 
 # fs_precompile_headers(target <header>...): precompile the heavy third-party and standard headers
-#   most sources of a target include (OpenCV, nlohmann/json, CLI11, Eigen, GoogleTest). Compile time
-#   only — `make test` builds three configurations on CI's two cores, and in the program and the tests
-#   a third of a source's compile time was parsing these headers. Every source still includes what it
-#   uses: configure with -DFS_PCH=OFF to build without them (checks that no source leans on the PCH).
+#   most sources of a test program include (GoogleTest, Eigen, OpenCV, nlohmann/json). Compile time
+#   only — `make test` builds three configurations on CI's two cores. Used for the test programs only:
+#   on the program's own sources a 200 MB PCH cost more to load than it saved (session 54). Every
+#   source still includes what it uses: configure with -DFS_PCH=OFF to build without them.
 function(fs_precompile_headers target)
   if(FS_PCH)
     target_precompile_headers(${target} PRIVATE ${ARGN})

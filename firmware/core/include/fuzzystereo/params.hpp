@@ -42,13 +42,13 @@ struct FisParams {
   int lut_size = 257;
 };
 
-// Segment-boundary refinement of the two WTA maps before eq. (13) (not in the paper;
-// docs/algorithm.md 4b).
 // How the boundary refinement counts census bits (boundary/; the same counts either way): kAuto the
-// fastest count the CPU has (AVX-512 VPOPCNTDQ, AVX2 nibble lookups, else the portable SWAR count);
-// kPortable always the portable one (tests: a CPU with a vector count checks the portable code too).
+// fastest count the CPU has (AVX-512 VPOPCNTDQ, AVX2 nibble lookups, NEON byte counts, else the portable
+// SWAR count); kPortable always the portable one (tests: a CPU with a vector count checks it too).
 enum class BitCount { kAuto, kPortable };
 
+// Segment-boundary refinement of the two WTA maps before eq. (13) (not in the paper;
+// docs/algorithm.md 4b).
 struct BoundaryParams {
   bool enabled = false;
   int census_radius = 2;  // census window (2 r + 1)^2 - 1 bits, r <= 2 (24 bits)
