@@ -174,9 +174,10 @@ void run_eval(const EvalOptions& o) {
     // The radiometric decisions of docs/algorithm.md 2b and 2c: the grey-level shift read and the
     // factor applied to the right gradients (x1.00 = none); the noise estimates, the excess and
     // whether the pair was smoothed.
-    std::snprintf(buf, sizeof buf, " (grey shift %.1f, gradient gain x%.2f, noise %.2f/%.2f excess %.2f%s)",
+    std::snprintf(buf, sizeof buf, " (grey shift %.1f, gradient gain x%.2f, noise %.2f/%.2f excess %.2f%s%s)",
                   result.grey_quantile_shift, result.gradient_gain_q16 / 65536.0, result.noise_sigma_left,
-                  result.noise_sigma_right, result.noise_excess, result.noise_equalised ? " smoothed" : "");
+                  result.noise_sigma_right, result.noise_excess, result.noise_equalised ? " smoothed" : "",
+                  result.boundary_refined ? ", boundary refined" : "");
     line += buf;
 
     // OpenCV baselines

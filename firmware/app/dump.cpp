@@ -62,7 +62,9 @@ void write_match_dump(const std::string& dir, const std::string& left_name, cons
                          {"noise_sigma_left", r.noise_sigma_left},
                          {"noise_sigma_right", r.noise_sigma_right},
                          {"noise_excess", r.noise_excess},
-                         {"noise_equalised", r.noise_equalised}};
+                         {"noise_equalised", r.noise_equalised},
+                         {"gain_triggered", r.gain_triggered},
+                         {"boundary_refined", r.boundary_refined}};
   std::ofstream f(dir + "/meta.json");
   f << meta.dump(2) << "\n";
   if (!f) throw UserError("cannot write '" + dir + "/meta.json'");

@@ -172,6 +172,7 @@ MatcherParams to_params(const Values& v) {
   p.cost.inject_shift = i("testing.inject_shift");
   p.fis.lut_size = i("fis.lut_size");
   p.boundary.enabled = v.flag("boundary.enabled");
+  p.boundary.on_mismatch = v.flag("boundary.on_mismatch");
   p.boundary.census_radius = i("boundary.census_radius");
   p.boundary.window = i("boundary.window");
   p.boundary.margin = v.num("boundary.margin");
@@ -302,6 +303,7 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nnoise_gradient_passes = " << p.cost.noise_gradient_passes << "\n\n"
     << "[fis]\nlut_size = " << p.fis.lut_size << "\n\n"
     << "[boundary]\nenabled = " << (p.boundary.enabled ? "true" : "false")
+    << "\non_mismatch = " << (p.boundary.on_mismatch ? "true" : "false")
     << "\ncensus_radius = " << p.boundary.census_radius << "\nwindow = " << p.boundary.window
     << "\nmargin = " << fmt_num(p.boundary.margin) << (p.boundary.margin == std::floor(p.boundary.margin) ? ".0" : "")
     << "\nstep = " << p.boundary.step << "\nmin_jump = " << p.boundary.min_jump << "\npasses = " << p.boundary.passes

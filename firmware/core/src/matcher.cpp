@@ -108,10 +108,11 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
   if (p.cost.gradient_gain_compensation) {  // docs/algorithm.md 2b (not in the paper)
     if (p.cost.gradient_gain_trigger == GainTrigger::Gradient) {
       r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, p.cost.gradient_gain_deadband);
+      r.gain_triggered = r.gradient_gain_q16 != 65536;
     } else {
       r.grey_quantile_shift = grey_quantile_shift(q_l, q_r);
-      if (r.grey_quantile_shift > p.cost.gradient_gain_grey_shift)
-        r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, 0.0);
+      r.gain_triggered = r.grey_quantile_shift > p.cost.gradient_gain_grey_shift;
+      if (r.gain_triggered) r.gradient_gain_q16 = compensate_gradient_gain(grad_l, grad_r, 0.0);
     }
   }
   clock.lap(Stage::Gradient);
@@ -145,7 +146,11 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
         r.dec_right = fis_winner_take_all(cost_r, *lut_, p.cost);
         r.disp_right_wta = paint_segments(r.seg_right, r.dec_right.disparity_q4);
       });
-  if (p.boundary.enabled) {  // docs/algorithm.md 4b (not in the paper), timed with the WTA
+  // docs/algorithm.md 4b (not in the paper), timed with the WTA: always when enabled, else on a pair the
+  // radiometric checks above found mismatched (census distances do not see a monotone grey-level change,
+  // and the window sum averages the noise).
+  r.boundary_refined = p.boundary.enabled || (p.boundary.on_mismatch && (r.noise_equalised || r.gain_triggered));
+  if (r.boundary_refined) {
     ImageU32 census_l, census_r;
     const int rad = p.boundary.census_radius;
     detail::run_pair(threads, [&] { census_l = census_transform(left, rad); },

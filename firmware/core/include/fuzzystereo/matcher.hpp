@@ -36,6 +36,8 @@ struct MatchResult {
   double noise_sigma_left = 0.0, noise_sigma_right = 0.0;  // estimated noise std [grey levels] (docs/algorithm.md 2c)
   double noise_excess = 0.0;                // noise of the noisier image beyond the other's [grey levels]
   bool noise_equalised = false;             // both images were smoothed (noise_excess > cost.noise_excess)
+  bool gain_triggered = false;              // the gain trigger fired (the right gradients were scaled by the factor)
+  bool boundary_refined = false;            // the [boundary] refinement ran (enabled, or on_mismatch and a mismatch)
   StageTimings timings;
 };
 

@@ -51,6 +51,9 @@ enum class BitCount { kAuto, kPortable };
 // docs/algorithm.md 4b).
 struct BoundaryParams {
   bool enabled = false;
+  // Also run on a pair the radiometric checks find mismatched (noise equalisation, docs/algorithm.md
+  // 2c, or the grey-level gain trigger, 2b, fired) when `enabled` is false (4b "On a mismatched pair").
+  bool on_mismatch = true;
   int census_radius = 2;  // census window (2 r + 1)^2 - 1 bits, r <= 2 (24 bits)
   int window = 7;         // [px], odd: side of the square over which census distances are summed
   double margin = 1.0;    // [bits per window pixel] a candidate must beat the own disparity by more

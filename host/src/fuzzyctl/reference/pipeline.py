@@ -83,15 +83,18 @@ def match(
     clock = _Clock()
 
     # not in the paper: docs/algorithm.md 2c (a pair of unequal noise is smoothed)
-    left, right, gin_l, gin_r, _ = image.noise_equalise(left, right, c.noise_excess, c.noise_image_passes,
-                                                         c.noise_gradient_passes)
+    left, right, gin_l, gin_r, smoothed = image.noise_equalise(left, right, c.noise_excess, c.noise_image_passes,
+                                                                c.noise_gradient_passes)
     grad_l = image.gradient_magnitude(gin_l)  # eq. (5)
     grad_r = image.gradient_magnitude(gin_r)
+    gain_triggered = False
     if c.gradient_gain_compensation:  # not in the paper: docs/algorithm.md 2b
         if c.gradient_gain_trigger == "gradient":
-            grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, c.gradient_gain_deadband)
+            grad_r, factor = image.compensate_gradient_gain(grad_l, grad_r, c.gradient_gain_deadband)
+            gain_triggered = factor != 1.0
         elif image.grey_quantile_shift(left, right) > c.gradient_gain_grey_shift:
             grad_r, _ = image.compensate_gradient_gain(grad_l, grad_r, 0.0)
+            gain_triggered = True
     clock.lap("gradient")
 
     seg_args = (s.region_size, s.compactness, s.iterations, s.min_segment_pct, s.coarse_iterations)
@@ -109,7 +112,8 @@ def match(
     fis_check = _cross_check(fis, dec_l, dec_r) if engine == "fast" else 0.0
     disp_l = wta.paint_segments(lab_l, dec_l.disparity_sub)
     disp_r = wta.paint_segments(lab_r, dec_r.disparity_sub)
-    if cfg.boundary.enabled:  # not in the paper: docs/algorithm.md 4b (timed with the WTA, as in the firmware)
+    # not in the paper: docs/algorithm.md 4b (timed with the WTA, as in the firmware); also on a mismatched pair
+    if cfg.boundary.enabled or (cfg.boundary.on_mismatch and (smoothed or gain_triggered)):
         disp_l, disp_r = boundary.refine_pair(disp_l, disp_r, left, right, cfg.boundary)
     clock.lap("wta")
 
