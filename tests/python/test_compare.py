@@ -233,6 +233,7 @@ def test_firmware_noise_equalisation_matches_the_reference(firmware_bin, tmp_pat
     run = _firmware_dump(firmware_bin, tmp_path / "l.png", tmp_path / "r.png", tmp_path / "fw", "--config", str(cfg))
     meta = dm.read_meta(dm.find_dump_dir(run) / "meta.json")
     assert meta["radiometric"]["noise_equalised"] is True
+    assert meta["radiometric"]["boundary_refined"] is True  # docs/algorithm.md 4b "On a mismatched pair"
     rc = main(["compare", str(run)])
     out = capsys.readouterr()
     assert rc == 0, out.out + out.err

@@ -153,6 +153,7 @@ for _map, _stage in (("wta_left", "wta"), ("wta_right", "wta"), ("lr", "lrcheck"
 _doc("final_within_1px_valid_pct", "esr", "%", "pixels valid in either final map: both valid and within 1 px (a pixel valid in one map only disagrees)")
 _doc("lr_mask_agreement_pct", "lrcheck", "%", "pixels with the same eq. (13) verdict")
 _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) replaced flag")
+_doc("boundary_decision_agreement_pct", "wta", "%", "100 when the firmware (meta.json radiometric.boundary_refined) and the reference both ran the [boundary] refinement or both did not (enabled, or on_mismatch on a mismatched pair; docs/algorithm.md 4b), 0 otherwise; empty for dumps that predate the field")
 _doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides; with [boundary], refined by the reference on the same images)")
 _doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask")
 _doc("esr_replaced_isolated_agreement_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's replaced mask")
@@ -240,7 +241,9 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
         == d[f"disp_{side}_wta"]
         for side in ("left", "right")
     ]
-    if cfg.boundary.enabled:  # docs/algorithm.md 4b: the painted table, refined by the reference, is the WTA map
+    fw_refined = d.meta.get("radiometric", {}).get("boundary_refined")
+    values["boundary_decision_agreement_pct"] = None if fw_refined is None else 100.0 * float(bool(fw_refined) == r.boundary_refined)
+    if r.boundary_refined:  # docs/algorithm.md 4b: the painted table, refined by the reference, is the WTA map
         tables = []
         for side in ("left", "right"):
             q4 = d[f"seg_{side}"][:, dumpmod.SEG_DISP_Q4]

@@ -250,5 +250,7 @@ def write_dump(out_dir: str | Path, result, meta_extra: dict[str, Any]) -> Path:
     meta = {"format": FORMAT, "version": VERSION, "width": int(w), "height": int(h)}
     meta.update(meta_extra)
     meta["timings_ms"] = {k: round(v, 3) for k, v in result.timings_ms.items()}
+    # the one radiometric decision the comparison checks (docs/formats.md; the firmware records more)
+    meta.setdefault("radiometric", {})["boundary_refined"] = bool(getattr(result, "boundary_refined", False))
     (d / "meta.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return d

@@ -129,5 +129,47 @@ TEST(Prefilter, MatcherSmoothsOnlyPairsOfUnequalNoise) {
   EXPECT_FALSE(m.match(left, dark).noise_equalised);
 }
 
+// docs/algorithm.md 4b "On a mismatched pair": with [boundary] enabled = false and on_mismatch = true the
+// refinement runs exactly when noise equalisation or the grey-level gain trigger fires, and then gives
+// the output of enabled = true; a matched pair gets the output of on_mismatch = false.
+TEST(Prefilter, BoundaryRefinementRunsOnMismatchedPairsOnly) {
+  const ImageU8 left = noisy_scene(96, 64, 0.0, 21);
+  const ImageU8 right = test::shifted_right(left, 5);
+  MatcherParams p = load_matcher_config("");
+  p.cost.max_disparity = 16;
+  p.cost.noise_excess = 2.0;
+  ASSERT_FALSE(p.boundary.enabled);
+  ASSERT_TRUE(p.boundary.on_mismatch);  // the default
+  MatcherParams never = p, always = p;
+  never.boundary.on_mismatch = false;
+  always.boundary.enabled = true;
+  const FisDefinition fis = load_fis_definition("");
+  const Matcher m(p, fis), m_never(never, fis), m_always(always, fis);
+
+  const MatchResult clean = m.match(left, right);
+  EXPECT_FALSE(clean.boundary_refined);
+  EXPECT_FALSE(clean.gain_triggered);
+  EXPECT_EQ(m_never.match(left, right).disp_final.data, clean.disp_final.data);
+  EXPECT_TRUE(m_always.match(left, right).boundary_refined);
+
+  ImageU8 noisy = right;  // noise of std 6 on the right view: equalised, then refined
+  std::mt19937 rng(9);
+  std::normal_distribution<double> n(0.0, 6.0);
+  for (auto& v : noisy.data) v = static_cast<std::uint8_t>(std::clamp(std::lround(v + n(rng)), 0L, 255L));
+  const MatchResult r = m.match(left, noisy);
+  ASSERT_TRUE(r.noise_equalised);
+  EXPECT_TRUE(r.boundary_refined);
+  EXPECT_EQ(m_always.match(left, noisy).disp_final.data, r.disp_final.data);
+  EXPECT_FALSE(m_never.match(left, noisy).boundary_refined);
+
+  ImageU8 dark = right;  // gain 0.6: the grey-level trigger, then refined
+  for (auto& v : dark.data) v = static_cast<std::uint8_t>(std::lround(v * 0.6));
+  const MatchResult g = m.match(left, dark);
+  EXPECT_FALSE(g.noise_equalised);
+  EXPECT_TRUE(g.gain_triggered);
+  EXPECT_TRUE(g.boundary_refined);
+  EXPECT_EQ(m_always.match(left, dark).disp_final.data, g.disp_final.data);
+}
+
 }  // namespace
 }  // namespace fs

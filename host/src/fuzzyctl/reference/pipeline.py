@@ -41,6 +41,7 @@ class ReferenceResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     labels_given: bool = False
     fis_check_error: float = 0.0  # max |fast engine - ControlSystemSimulation| on sampled winners
+    boundary_refined: bool = False  # the [boundary] refinement ran (enabled, or on_mismatch on a mismatched pair)
 
 
 class _Clock:
@@ -113,7 +114,8 @@ def match(
     disp_l = wta.paint_segments(lab_l, dec_l.disparity_sub)
     disp_r = wta.paint_segments(lab_r, dec_r.disparity_sub)
     # not in the paper: docs/algorithm.md 4b (timed with the WTA, as in the firmware); also on a mismatched pair
-    if cfg.boundary.enabled or (cfg.boundary.on_mismatch and (smoothed or gain_triggered)):
+    refine = cfg.boundary.enabled or (cfg.boundary.on_mismatch and (smoothed or gain_triggered))
+    if refine:
         disp_l, disp_r = boundary.refine_pair(disp_l, disp_r, left, right, cfg.boundary)
     clock.lap("wta")
 
@@ -135,6 +137,7 @@ def match(
         disp_left_wta=disp_l, disp_right_wta=disp_r, lr_mask=mask, disp_lr=disp_lr,
         disp_esr=disp_esr, disp_final=final, densify_changed=changed, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
         labels_given=labels_left is not None and labels_right is not None, fis_check_error=fis_check,
+        boundary_refined=refine,
     )  # fmt: skip
 
 
