@@ -24,6 +24,7 @@
 #include "dataset.hpp"
 #include "fuzzystereo/matcher.hpp"
 #include "io.hpp"
+#include "radiometric.hpp"
 
 namespace fs::app {
 namespace {
@@ -34,6 +35,8 @@ struct BenchOptions {
   std::string config;
   std::string fis;
   std::string json;
+  std::string radiometric = "none";  // a distortion of the right image, as `eval --radiometric`
+  std::uint64_t noise_seed = kRadioNoiseSeed;
   int repeats = 5;
 };
 
@@ -83,13 +86,15 @@ BenchInput synthetic_input() {
   return in;
 }
 
-BenchInput frame_input(const Frame& f) {
+BenchInput frame_input(const Frame& f, const BenchOptions& o) {
   const FrameImages im = read_frame_images(f);
   BenchInput in;
   in.label = f.set + "/" + f.name;
   in.max_disparity = f.max_disparity;
   cv::cvtColor(im.left, in.left_gray, cv::COLOR_BGR2GRAY);
-  cv::cvtColor(im.right, in.right_gray, cv::COLOR_BGR2GRAY);
+  // The distortion on the colour image, before the grey conversion: what `eval --radiometric` matches.
+  const cv::Mat right = o.radiometric == "none" ? im.right : apply_radiometric(im.right, o.radiometric, o.noise_seed);
+  cv::cvtColor(right, in.right_gray, cv::COLOR_BGR2GRAY);
   return in;
 }
 
@@ -106,19 +111,21 @@ BenchInput choose_input(const BenchOptions& o) {
   } catch (const UserError& e) {
     if (explicit_dir || !o.frame.empty()) throw;
     std::fprintf(stderr, "bench: no dataset at '%s'; using a synthetic random-texture pair\n", dir.c_str());
-    return synthetic_input();
+    BenchInput in = synthetic_input();
+    if (o.radiometric != "none") in.right_gray = apply_radiometric(in.right_gray, o.radiometric, o.noise_seed);
+    return in;
   }
   if (!o.frame.empty()) {
     for (const auto& f : frames)
-      if (f.name == o.frame || f.set + "/" + f.name == o.frame) return frame_input(f);
+      if (f.name == o.frame || f.set + "/" + f.name == o.frame) return frame_input(f, o);
     std::string names;
     for (std::size_t i = 0; i < frames.size() && i < 12; ++i) names += (i ? ", " : "") + frames[i].set + "/" + frames[i].name;
     if (frames.size() > 12) names += ", ...";
     throw UserError("no frame '" + o.frame + "' under '" + dir + "' (frames: " + names + ")");
   }
   for (const auto& f : frames)
-    if (f.set == "kitti2015") return frame_input(f);
-  return frame_input(frames.front());
+    if (f.set == "kitti2015") return frame_input(f, o);
+  return frame_input(frames.front(), o);
 }
 
 struct RunFigures {
@@ -126,6 +133,8 @@ struct RunFigures {
   std::array<double, kStages> stage_ms{};
   double fuzzy_ms = 0, bm_ms = 0, sgbm_ms = 0;
   double ratio_sgbm = 0, ratio_bm = 0;  // medians of the per-repeat ratios
+  bool boundary_refined = false;         // the [boundary] refinement ran (enabled, or on a mismatched pair)
+  bool noise_equalised = false, gain_triggered = false;
 };
 
 RunFigures bench_at(const BenchInput& in, MatcherParams params, const FisDefinition& fis, int threads, int repeats) {
@@ -154,6 +163,7 @@ RunFigures bench_at(const BenchInput& in, MatcherParams params, const FisDefinit
     MatchResult res;
     total.push_back(time_ms([&] { res = matcher.match(left, right); }));
     for (int s = 0; s < kStages; ++s) stages[s].push_back(res.timings.ms[s]);
+    r.boundary_refined = res.boundary_refined, r.noise_equalised = res.noise_equalised, r.gain_triggered = res.gain_triggered;
     t_bm.push_back(baseline_ms(bm, Baseline::BM));
     t_sgbm.push_back(baseline_ms(sgbm, Baseline::SGBM));
     r_sgbm.push_back(total.back() / t_sgbm.back());
@@ -170,6 +180,7 @@ RunFigures bench_at(const BenchInput& in, MatcherParams params, const FisDefinit
 
 void run_bench(const BenchOptions& o) {
   if (o.repeats < 1) throw UserError("--repeats must be >= 1");
+  check_radiometric_name(o.radiometric);
   const MatcherParams params = load_matcher_config(o.config);
   const FisDefinition fis = load_fis_definition(o.fis);
   const BenchInput in = choose_input(o);
@@ -191,6 +202,12 @@ void run_bench(const BenchOptions& o) {
 
   std::printf("bench: %s, %dx%d, D=%d, median of %d interleaved runs after 1 warm-up [ms]; ratios = median per-run ratio\n", in.label.c_str(),
               in.left_gray.cols, in.left_gray.rows, in.max_disparity, o.repeats);
+  // What the matcher made of the pair (docs/algorithm.md 2b, 2c, 4b): a mismatched pair costs more.
+  const RunFigures& r0 = runs.front();
+  std::printf("right image: %s; the matcher %s, %s, boundary refinement %s\n",
+              o.radiometric == "none" ? "as captured" : ("radiometric '" + o.radiometric + "' applied").c_str(),
+              r0.noise_equalised ? "equalised the noise" : "did not equalise noise",
+              r0.gain_triggered ? "compensated the gain" : "did not compensate gain", r0.boundary_refined ? "on" : "off");
   std::printf("%-24s", "");
   for (const auto& r : runs) std::printf(" %12s", ("threads=" + std::to_string(r.threads)).c_str());
   std::printf("\n");
@@ -215,6 +232,8 @@ void run_bench(const BenchOptions& o) {
     j["height"] = in.left_gray.rows;
     j["max_disparity"] = in.max_disparity;
     j["repeats"] = o.repeats;
+    j["radiometric"] = o.radiometric;
+    j["boundary_refined"] = runs.front().boundary_refined;
     j["runs"] = nlohmann::ordered_json::array();
     for (const auto& r : runs) {
       nlohmann::ordered_json st = nlohmann::ordered_json::object();
@@ -246,6 +265,11 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--config", opts->config, "Matcher config TOML (default: built-in defaults)");
   cmd->add_option("--fis", opts->fis, "FIS definition TOML (default: built-in common/fis/fis.toml)");
   cmd->add_option("--json", opts->json, "Write the figures to this JSON file");
+  cmd->add_option("--radiometric", opts->radiometric,
+                  "Distortion applied to the right image, as in eval: none, gain, gamma, mixed, noise (times a "
+                  "mismatched pair: the matcher then runs the [boundary] refinement, docs/algorithm.md 4b)")
+      ->capture_default_str();
+  cmd->add_option("--noise-seed", opts->noise_seed, "Seed of the noise field of --radiometric noise");
   cmd->callback([opts] { run_bench(*opts); });
 }
 

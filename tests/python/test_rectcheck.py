@@ -14,7 +14,7 @@ import pytest
 
 from fuzzyctl.cli import main
 from fuzzyctl.errors import FatalError
-from fuzzyctl.rectcheck import check_folder, check_pairs
+from fuzzyctl.rectcheck import check_folder, check_pairs, photometric_check
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +73,44 @@ def test_textureless_pair_is_refused():
     flat = np.full((120, 160), 128, np.uint8)
     with pytest.raises(FatalError, match="feature matches"):
         check_pairs([("flat", flat, flat)])
+
+
+# ---- photometry (the matcher's camera-difference detectors, docs/algorithm.md 2b, 2c, 4b) ----------
+
+@pytest.mark.firmware
+def test_photometry_of_a_matched_pair_reads_as_matched(sim_pair):
+    left, right = sim_pair
+    ph = photometric_check([("sim", left, right)])
+    (p,) = ph.pairs
+    assert not p.mismatched and p.grey_shift < 5.0 and p.brightness == pytest.approx(1.0, abs=0.05)
+    assert ph.advice() is None
+
+
+@pytest.mark.firmware
+def test_photometry_finds_a_darker_and_a_noisier_right_camera(sim_pair):
+    left, right = sim_pair
+    dark = np.clip(np.rint(right * 0.6), 0, 255).astype(np.uint8)
+    noisy = np.clip(np.rint(right + np.random.default_rng(3).normal(0.0, 6.0, right.shape)), 0, 255).astype(np.uint8)
+    ph = photometric_check([("dark", left, dark), ("noisy", left, noisy), ("dark2", left, dark)])
+    d, n, _ = ph.pairs
+    assert d.gain_triggered and not d.equalised and d.brightness == pytest.approx(0.6, abs=0.05)
+    assert n.equalised and n.noise_right > n.noise_left + 3.0
+    assert ph.mismatched == 3
+    advice = ph.advice()
+    assert advice is not None and "darker" in advice and "1.5x" in advice
+    # the thresholds are the config's: a config that raises them takes the same pairs as matched
+    from fuzzyctl.config import parse_config
+
+    lenient = parse_config("[cost]\ngradient_gain_grey_shift = 200.0\nnoise_excess = 0.0\n", "lenient.toml")
+    assert photometric_check([("dark", left, dark), ("noisy", left, noisy)], lenient).mismatched == 0
+
+
+@pytest.mark.firmware
+def test_cli_prints_the_photometry_and_warns(sim_pair, tmp_path, capsys):
+    left, right = sim_pair
+    for side, img in (("left", left), ("right", np.clip(np.rint(right * 0.6), 0, 255).astype(np.uint8))):
+        (tmp_path / "d" / side).mkdir(parents=True)
+        cv2.imwrite(str(tmp_path / "d" / side / "000000.png"), img)
+    assert main(["rectcheck", str(tmp_path / "d")]) == 0  # advice, not a failure
+    out = capsys.readouterr().out
+    assert "photometry: right image x0.6" in out and "warning:" in out and "darker" in out

@@ -605,25 +605,37 @@ def calibrate_cmd(folder: Path, board: str, square_m: float, out: Path, min_pair
               help="Pairs used, spread over the folder (0 = all).")
 @click.option("--max-dy", type=click.FloatRange(min=0.0), default=0.5, show_default=True,
               help="Fail (exit 1) when the median |y_left - y_right| exceeds this [px].")
+@click.option("--config", "config_file", type=_existing_file, default=None,
+              help="Matcher config whose camera-difference thresholds the photometric check uses (default: the defaults).")
 def rectcheck_cmd(folder: Path | None, left_path: Path | None, right_path: Path | None, max_disparity: float, limit: int,
-                  max_dy: float) -> None:
+                  max_dy: float, config_file: Path | None) -> None:
     """Row differences of SIFT matches in rectified pairs (a `fuzzystereo capture --calib` folder, or
     one pair): a stereo rig whose cameras moved since calibration shows a vertical offset, roll or
-    scale trend. Exit 1 when the median |dy| exceeds --max-dy (then re-calibrate)."""
+    scale trend. Exit 1 when the median |dy| exceeds --max-dy (then re-calibrate).
+
+    Also reports whether the two cameras see the scene alike (brightness, tone, noise), as the matcher's
+    own camera-difference checks read the pairs, with advice when most pairs read as mismatched."""
     from .calibrate import read_grey
+    from .config import load_config
     from .errors import CheckFailed
-    from .rectcheck import check_folder, check_pairs
+    from .rectcheck import check_pairs, folder_pairs, photometric_check
 
     if (left_path is None) != (right_path is None) or (folder is None) == (left_path is None):
         raise FatalError("give a capture FOLDER, or --left and --right (one pair)")
+    cfg = load_config(config_file)
     if folder is not None:
-        r = check_folder(folder, max_disparity=max_disparity, limit=limit)
+        pairs = folder_pairs(folder, limit=limit)
     else:
-        r = check_pairs([(left_path.name, read_grey(left_path), read_grey(right_path))], max_disparity=max_disparity)
-    for p in r.pairs:
-        console.print(f"{p.name}: {p.matches} matches, |dy| median {p.median_abs_dy:.2f} px")
-    for line in r.lines():
+        pairs = [(left_path.name, read_grey(left_path), read_grey(right_path))]
+    r = check_pairs(pairs, max_disparity=max_disparity)
+    photo = photometric_check(pairs, cfg)
+    for p, q in zip(r.pairs, photo.pairs):
+        console.print(f"{p.name}: {p.matches} matches, |dy| median {p.median_abs_dy:.2f} px; grey shift {q.grey_shift:.1f}, "
+                      f"noise {q.noise_left:.2f}/{q.noise_right:.2f}{' (mismatched)' if q.mismatched else ''}")
+    for line in r.lines() + photo.lines():
         console.print(line)
+    if (advice := photo.advice()) is not None:
+        console.print(f"[yellow]warning:[/] {advice}")
     if r.median_abs_dy > max_dy:
         raise CheckFailed(
             f"median |dy| {r.median_abs_dy:.2f} px > --max-dy {max_dy} px: the rig is no longer rectified "

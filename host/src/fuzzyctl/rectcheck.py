@@ -124,11 +124,108 @@ def check_pairs(pairs: list[tuple[str, np.ndarray, np.ndarray]], max_disparity: 
     return out
 
 
-def check_folder(folder: Path, max_disparity: float = 256.0, limit: int = 0) -> RectCheck:
-    """``check_pairs`` over a capture folder (left/, right/), at most ``limit`` pairs spread evenly."""
+# ---- photometry: do the two cameras see the scene alike? ----------------------------------------
+#
+# The matcher compares the two views' grey levels, so cameras that differ in exposure, gain, tone
+# curve or noise cost it accuracy. It has two detectors for such pairs (docs/algorithm.md 2b, 2c:
+# the grey-level quantile shift and the noise excess), and on a pair either fires it compensates and
+# runs the census boundary refinement, about 1.5x the matcher's time (4b "On a mismatched pair"). The
+# check runs the same detectors (the reference twins, exact) on the captured pairs, so a rig whose
+# cameras are set up differently is found at bring-up, not from a slow or noisy robot.
+
+
+@dataclass
+class PhotoPair:
+    name: str
+    grey_shift: float  # mean |quantile difference| [grey levels], after noise equalisation as in the matcher
+    brightness: float  # right / left, the ratio of the sums of the 5 %, ..., 95 % quantiles
+    noise_left: float  # [grey levels]
+    noise_right: float
+    noise_excess: float  # the noisier camera's noise beyond the other's [grey levels]
+    equalised: bool  # noise equalisation fires (excess > cost.noise_excess)
+    gain_triggered: bool  # the grey-level gain trigger fires (shift > cost.gradient_gain_grey_shift)
+
+    @property
+    def mismatched(self) -> bool:
+        return self.equalised or self.gain_triggered
+
+
+@dataclass
+class PhotoCheck:
+    pairs: list[PhotoPair]
+    grey_shift_limit: float  # cost.gradient_gain_grey_shift (0 when the grey trigger is not in use)
+    noise_excess_limit: float  # cost.noise_excess (0 = noise equalisation off)
+    on_mismatch: bool  # boundary.on_mismatch
+
+    def median(self, key: str) -> float:
+        return float(np.median([getattr(p, key) for p in self.pairs])) if self.pairs else math.nan
+
+    @property
+    def mismatched(self) -> int:
+        return sum(p.mismatched for p in self.pairs)
+
+    def lines(self) -> list[str]:
+        n = len(self.pairs)
+        shift = f"grey-level shift median {self.median('grey_shift'):.1f} levels"
+        shift += (f" (gain trigger above {self.grey_shift_limit:g}: {sum(p.gain_triggered for p in self.pairs)} of {n} pairs)"
+                  if self.grey_shift_limit > 0 else " (gain trigger not in use)")
+        noise = (f"noise left {self.median('noise_left'):.2f} / right {self.median('noise_right'):.2f} grey levels, "
+                 f"excess median {self.median('noise_excess'):.2f}")
+        noise += (f" (equalised above {self.noise_excess_limit:g}: {sum(p.equalised for p in self.pairs)} of {n} pairs)"
+                  if self.noise_excess_limit > 0 else " (noise equalisation off)")
+        return [f"photometry: right image x{self.median('brightness'):.2f} the left's brightness, {shift}", noise]
+
+    def advice(self) -> str | None:
+        """A sentence for the operator when most pairs read as mismatched, else None."""
+        n = len(self.pairs)
+        if not n or 2 * self.mismatched <= n:
+            return None
+        what = []
+        if sum(p.gain_triggered for p in self.pairs) * 2 > n:
+            b = self.median("brightness")
+            what.append(f"the right camera is {abs(1 - b) * 100:.0f} % {'darker' if b < 1 else 'brighter'} or has another tone curve")
+        if sum(p.equalised for p in self.pairs) * 2 > n:
+            noisier = "right" if self.median("noise_right") > self.median("noise_left") else "left"
+            what.append(f"the {noisier} camera is noisier")
+        cost = ("the matcher compensates and runs the boundary refinement on such pairs, about 1.5x its time per frame"
+                if self.on_mismatch else "the matcher compensates (the boundary refinement is off for them: on_mismatch = false)")
+        return (f"{self.mismatched} of {n} pairs read as mismatched ({'; '.join(what) or 'see above'}): {cost}. "
+                "Give both cameras the same fixed exposure, gain and white balance (docs/capture.md), or accept the cost")
+
+
+def photometric_check(pairs: list[tuple[str, np.ndarray, np.ndarray]], cfg=None) -> PhotoCheck:
+    """The matcher's camera-difference detectors (docs/algorithm.md 2b, 2c) on grey pairs ``(name, left, right)``,
+    with the thresholds of ``cfg`` (a fuzzyctl.config.Config; default: common/config/default.toml)."""
+    from .config import load_config
+    from .reference import image
+
+    cfg = cfg if cfg is not None else load_config(None)
+    c = cfg.cost
+    grey = c.gradient_gain_compensation and c.gradient_gain_trigger == "grey"
+    out = PhotoCheck([], c.gradient_gain_grey_shift if grey else 0.0, c.noise_excess, bool(cfg.boundary.on_mismatch))
+    for name, left, right in pairs:
+        if left.shape != right.shape:
+            raise FatalError(f"{name}: left is {left.shape[1]}x{left.shape[0]}, right {right.shape[1]}x{right.shape[0]}")
+        sl, sr = image.estimate_noise_sigma(left), image.estimate_noise_sigma(right)
+        excess = image.noise_excess(sl, sr, image.grey_spread(left), image.grey_spread(right))
+        l2, r2, _, _, equalised = image.noise_equalise(left, right, c.noise_excess, c.noise_image_passes,
+                                                       c.noise_gradient_passes)
+        shift = image.grey_quantile_shift(l2, r2)  # the matcher reads the images the costs see
+        ql, qr = image.grey_quantiles(left).sum(), image.grey_quantiles(right).sum()
+        out.pairs.append(PhotoPair(name, shift, float(qr) / float(ql) if ql > 0 else math.nan, sl, sr, excess,
+                                   bool(equalised), bool(grey and shift > c.gradient_gain_grey_shift)))
+    return out
+
+
+def folder_pairs(folder: Path, limit: int = 0) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The grey pairs ``(name, left, right)`` of a capture folder (left/, right/), at most ``limit`` spread evenly."""
     files = find_pairs(folder)
     if limit and len(files) > limit:
         idx = np.linspace(0, len(files) - 1, limit).round().astype(int)
         files = [files[i] for i in sorted(set(idx))]
-    pairs = [(pf.name, read_grey(pf.left), read_grey(pf.right)) for pf in files]
-    return check_pairs(pairs, max_disparity=max_disparity)
+    return [(pf.name, read_grey(pf.left), read_grey(pf.right)) for pf in files]
+
+
+def check_folder(folder: Path, max_disparity: float = 256.0, limit: int = 0) -> RectCheck:
+    """``check_pairs`` over a capture folder (left/, right/), at most ``limit`` pairs spread evenly."""
+    return check_pairs(folder_pairs(folder, limit), max_disparity=max_disparity)
