@@ -56,6 +56,10 @@ void print_result(const LoopResult& r) {
                 r.watchdog_stop_wall_ms, r.watchdog_stop_wall_after_stall_ms);
   if (r.perception_stops > 0 || r.perception_fault_frames > 0)
     std::printf("perception failsafe: %d stop(s), %d faulty frame(s)\n", r.perception_stops, r.perception_fault_frames);
+  if (r.camera_mismatch_frames > 0)  // docs/runtime.md: the two cameras do not see the scene alike
+    std::printf("cameras: %d of %d frames read as mismatched (gain/tone %d, noise %d): give both cameras the same fixed "
+                "exposure and gain (check with fuzzyctl rectcheck)\n",
+                r.camera_mismatch_frames, r.frames, r.camera_gain_frames, r.camera_noise_frames);
   if (!r.record_warning.empty())
     std::printf("record incomplete: %s (%d snapshots, %d frame-log lines not written)\n", r.record_warning.c_str(),
                 r.record_dropped_snapshots, r.record_dropped_frames);

@@ -456,6 +456,7 @@ json LoopResult::to_json() const {
          {"watchdog_trips", watchdog_trips},
          {"perception_stops", perception_stops},
          {"perception_fault_frames", perception_fault_frames},
+         {"camera_mismatch_frames", camera_mismatch_frames},
          {"fps_wall", fps_wall}};
   if (watchdog_stop_after_last_plan_ms >= 0) {
     j["watchdog_stop_after_last_plan_ms"] = watchdog_stop_after_last_plan_ms;
@@ -908,6 +909,10 @@ LoopResult RobotLoop::run() {
     auto s1 = std::chrono::steady_clock::now();
     const MatchResult mr = matcher.match(gl, gr);
     stage_ms["match"].push_back(wall_ms_since(s1));
+    const bool camera_mismatch = mr.noise_equalised || mr.gain_triggered;  // docs/runtime.md "Run record"
+    res.camera_mismatch_frames += camera_mismatch;
+    res.camera_gain_frames += mr.gain_triggered;
+    res.camera_noise_frames += mr.noise_equalised;
     if (opt.on_match) opt.on_match(gl, gr, mr);
     // ---- perception health (robot::PerceptionMonitor) ----
     bool perception_halt = false, perception_fault = false;
@@ -1574,6 +1579,11 @@ LoopResult RobotLoop::run() {
       fj["true_front_m"] =
           std::round(true_front_m(*I.world, true_at_capture, robot::ns_to_s(t_frame - t0), I.rp.radius_m, 1.0) * 100) / 100;
     if (perception_fault) fj["perception"] = health.fault();
+    if (camera_mismatch)
+      fj["cameras"] = {{"grey_shift", std::round(mr.grey_quantile_shift * 10) / 10},
+                       {"noise_excess", std::round(mr.noise_excess * 100) / 100},
+                       {"gain_triggered", mr.gain_triggered},
+                       {"noise_equalised", mr.noise_equalised}};
     if (!opt.record_dir.empty() && opt.plan_every > 0 && frame % opt.plan_every == 0) {
       json mj = json::array();
       for (const auto& o : obstacles) mj.push_back({std::round(o.c.x * 100) / 100, std::round(o.c.y * 100) / 100, std::round(o.r * 100) / 100});

@@ -132,6 +132,10 @@ struct LoopResult {
   int watchdog_trips = 0;
   int perception_stops = 0;         // times the perception health failsafe stopped the robot
   int perception_fault_frames = 0;  // frames that failed a health test (not given to map and tracker)
+  // Frames whose pair the matcher's camera-difference checks read as mismatched (noise equalised or the
+  // grey-level gain trigger fired; docs/algorithm.md 2b, 2c, 4b): cameras that differ in exposure, gain or noise.
+  int camera_mismatch_frames = 0;
+  int camera_gain_frames = 0, camera_noise_frames = 0;  // of those, by which check
   double perception_stop_after_ms = -1;  // blind test: stop command after the blind frame's capture
   int record_dropped_snapshots = 0;  // --record: snapshots not written (disk full, write error)
   int record_dropped_frames = 0;     // --record: frame-log lines not written

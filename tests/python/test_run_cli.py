@@ -204,6 +204,25 @@ def test_perception_failsafe_never_trips_on_the_healthy_mission(firmware_bin, co
     assert p.returncode == 0, p.stderr
     r = json.loads(out.read_text())
     assert r["reached"] and r["perception_fault_frames"] == 0 and r["perception_stops"] == 0
+    assert r["camera_mismatch_frames"] == 0 and "cameras:" not in p.stdout
+
+
+def test_run_reports_a_mismatched_camera_pair(firmware_bin, common_dir, tmp_path):
+    # docs/runtime.md "Run record": a right camera at 0.7x gain trips the matcher's grey-level gain trigger on
+    # every frame; the run counts, records and names it, and the matched mission above counts none.
+    scene = (common_dir / "sim/scenes/mission.toml").read_text()
+    assert "[radiometric.right]\n" in scene
+    dark = tmp_path / "dark.toml"
+    dark.write_text(scene.replace("[radiometric.right]\n", "[radiometric.right]\ngain = 0.7\n", 1))
+    out, rec = tmp_path / "r.json", tmp_path / "rec"
+    p = run(firmware_bin, "run", "--source", f"sim:{dark}", "--quiet", "--max-frames", "12", "--record", str(rec),
+            "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    r = json.loads(out.read_text())
+    assert r["frames"] == 12 and r["camera_mismatch_frames"] == 12
+    assert "cameras: 12 of 12 frames read as mismatched (gain/tone 12, noise 0)" in p.stdout
+    frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
+    assert all(f["cameras"]["gain_triggered"] and f["cameras"]["grey_shift"] > 13.0 for f in frames)
 
 
 def test_bad_blind_option_is_a_clear_error(firmware_bin, common_dir):
