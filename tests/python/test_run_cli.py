@@ -223,6 +223,13 @@ def test_run_reports_a_mismatched_camera_pair(firmware_bin, common_dir, tmp_path
     assert "cameras: 12 of 12 frames read as mismatched (gain/tone 12, noise 0)" in p.stdout
     frames = [json.loads(line) for line in (rec / "frames.jsonl").read_text().splitlines()]
     assert all(f["cameras"]["gain_triggered"] and f["cameras"]["grey_shift"] > 13.0 for f in frames)
+    # the run's HTML report lists them as one span
+    from fuzzyctl.runreport import camera_mismatch_spans, write_report
+
+    spans = camera_mismatch_spans(frames)
+    assert len(spans) == 1 and spans[0][:2] == (0, 11) and spans[0][2].startswith("gain/tone: grey-level shift")
+    page = write_report(rec, tmp_path / "report.html").read_text()
+    assert "Camera mismatch" in page and "<td>0-11</td>" in page
 
 
 def test_bad_blind_option_is_a_clear_error(firmware_bin, common_dir):

@@ -260,6 +260,13 @@ def write_report(run_dir: Path, out: Path, max_frames: int = 6) -> Path:
         parts.append("<h2>Perception faults</h2><p>Frames the perception failsafe found blind or frozen "
                      "(kept out of the map and the tracker; the motors stop after <code>[perception] trip_frames</code> in a row).</p>"
                      f"<table><tr><th>frames</th><th>fault (first frame)</th></tr>{frows}</table>")
+    mism = camera_mismatch_spans(frames)
+    if mism:
+        mrows = "".join(f"<tr><td>{a}-{b}</td><td>{html.escape(what)}</td></tr>" for a, b, what in mism)
+        parts.append("<h2>Camera mismatch</h2><p>Frames whose pair the matcher's camera-difference checks read as "
+                     "mismatched (docs/algorithm.md 2b, 2c; docs/runtime.md): the cameras differ in exposure, gain, tone or "
+                     "noise. Give both the same fixed exposure and gain, and check with <code>fuzzyctl rectcheck</code>.</p>"
+                     f"<table><tr><th>frames</th><th>what (first frame)</th></tr>{mrows}</table>")
     parts.append("<h2>Stage timings</h2><table><tr><th>stage</th><th>median ms</th><th>p90 ms</th><th>max ms</th></tr>" + trows + "</table>")
     if stats:
         parts.append(f"<img src='{_fig_png(timing_figure(run))}'>")
@@ -282,6 +289,27 @@ def perception_fault_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int,
             spans[-1] = (spans[-1][0], n, spans[-1][2])
         elif msg:
             spans.append((n, n, str(msg)))
+        prev = n
+    return spans
+
+
+def camera_mismatch_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int, str]]:
+    """Runs of consecutive frames with a ``cameras`` entry (the pair read as mismatched): (first frame, last frame,
+    what the first frame's checks read)."""
+    spans: list[tuple[int, int, str]] = []
+    prev = None
+    for f in frames:
+        c = f.get("cameras")
+        n = int(f.get("frame", 0))
+        if c and spans and prev is not None and n == prev + 1 and spans[-1][1] == prev:
+            spans[-1] = (spans[-1][0], n, spans[-1][2])
+        elif c:
+            what = []
+            if c.get("gain_triggered"):
+                what.append(f"gain/tone: grey-level shift {float(c.get('grey_shift', 0.0)):.1f} levels")
+            if c.get("noise_equalised"):
+                what.append(f"noise: excess {float(c.get('noise_excess', 0.0)):.2f} grey levels")
+            spans.append((n, n, "; ".join(what) or "mismatched"))
         prev = n
     return spans
 
