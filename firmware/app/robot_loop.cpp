@@ -773,6 +773,10 @@ LoopResult RobotLoop::run() {
   // cameras (the simulator renders a standing robot's view identically; replays may loop).
   robot::PerceptionMonitor health(I.hp);
   robot::FrozenCounter frozen_left, frozen_right;
+  // Consecutive frames the cameras read as mismatched; one warning on stderr when it reaches kMismatchWarnFrames.
+  constexpr int kMismatchWarnFrames = 30;
+  int mismatch_run = 0;
+  bool mismatch_warned = false;
   const bool live_camera = !is_sim && opt.source.rfind("replay:", 0) != 0;
   std::int64_t blind_t_ns = -1;  // capture time of the first blinded frame (fault injection)
   if (opt.blind_frame >= 0 && opt.blind_side != "left" && opt.blind_side != "right" && opt.blind_side != "both")
@@ -913,6 +917,16 @@ LoopResult RobotLoop::run() {
     res.camera_mismatch_frames += camera_mismatch;
     res.camera_gain_frames += mr.gain_triggered;
     res.camera_noise_frames += mr.noise_equalised;
+    mismatch_run = camera_mismatch ? mismatch_run + 1 : 0;
+    if (mismatch_run == kMismatchWarnFrames && !mismatch_warned && !opt.quiet) {
+      mismatch_warned = true;
+      std::fprintf(stderr,
+                   "cameras: the last %d frames read as mismatched (%s%s%s): give both cameras the same fixed exposure "
+                   "and gain (fuzzyctl rectcheck)\n",
+                   kMismatchWarnFrames, mr.gain_triggered ? "gain/tone, grey-level shift " : "",
+                   mr.gain_triggered ? std::to_string(static_cast<int>(std::lround(mr.grey_quantile_shift))).c_str() : "",
+                   mr.noise_equalised ? (mr.gain_triggered ? "; noise" : "noise") : "");
+    }
     if (opt.on_match) opt.on_match(gl, gr, mr);
     // ---- perception health (robot::PerceptionMonitor) ----
     bool perception_halt = false, perception_fault = false;

@@ -230,6 +230,10 @@ def test_run_reports_a_mismatched_camera_pair(firmware_bin, common_dir, tmp_path
     assert len(spans) == 1 and spans[0][:2] == (0, 11) and spans[0][2].startswith("gain/tone: grey-level shift")
     page = write_report(rec, tmp_path / "report.html").read_text()
     assert "Camera mismatch" in page and "<td>0-11</td>" in page
+    # without --quiet, 30 mismatched frames in a row warn once while the robot runs
+    p = run(firmware_bin, "run", "--source", f"sim:{dark}", "--max-frames", "31", "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.count("cameras: the last 30 frames read as mismatched (gain/tone, grey-level shift") == 1
 
 
 def test_bad_blind_option_is_a_clear_error(firmware_bin, common_dir):
