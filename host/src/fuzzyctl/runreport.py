@@ -278,40 +278,39 @@ def write_report(run_dir: Path, out: Path, max_frames: int = 6) -> Path:
     return out
 
 
-def perception_fault_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int, str]]:
-    """Runs of consecutive frames with a perception fault: (first frame, last frame, first message)."""
+def _frame_spans(frames: list[dict[str, Any]], key: str, describe) -> list[tuple[int, int, str]]:
+    """Runs of consecutive frames whose record has ``key``: (first frame, last frame, describe(first entry))."""
     spans: list[tuple[int, int, str]] = []
     prev = None
     for f in frames:
-        msg = f.get("perception")
+        v = f.get(key)
         n = int(f.get("frame", 0))
-        if msg and spans and prev is not None and n == prev + 1 and spans[-1][1] == prev:
+        if v and spans and prev is not None and n == prev + 1 and spans[-1][1] == prev:
             spans[-1] = (spans[-1][0], n, spans[-1][2])
-        elif msg:
-            spans.append((n, n, str(msg)))
+        elif v:
+            spans.append((n, n, describe(v)))
         prev = n
     return spans
+
+
+def perception_fault_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int, str]]:
+    """Runs of consecutive frames with a perception fault: (first frame, last frame, first message)."""
+    return _frame_spans(frames, "perception", str)
+
+
+def _describe_cameras(c: dict[str, Any]) -> str:
+    what = []
+    if c.get("gain_triggered"):
+        what.append(f"gain/tone: grey-level shift {float(c.get('grey_shift', 0.0)):.1f} levels")
+    if c.get("noise_equalised"):
+        what.append(f"noise: excess {float(c.get('noise_excess', 0.0)):.2f} grey levels")
+    return "; ".join(what) or "mismatched"
 
 
 def camera_mismatch_spans(frames: list[dict[str, Any]]) -> list[tuple[int, int, str]]:
     """Runs of consecutive frames with a ``cameras`` entry (the pair read as mismatched): (first frame, last frame,
     what the first frame's checks read)."""
-    spans: list[tuple[int, int, str]] = []
-    prev = None
-    for f in frames:
-        c = f.get("cameras")
-        n = int(f.get("frame", 0))
-        if c and spans and prev is not None and n == prev + 1 and spans[-1][1] == prev:
-            spans[-1] = (spans[-1][0], n, spans[-1][2])
-        elif c:
-            what = []
-            if c.get("gain_triggered"):
-                what.append(f"gain/tone: grey-level shift {float(c.get('grey_shift', 0.0)):.1f} levels")
-            if c.get("noise_equalised"):
-                what.append(f"noise: excess {float(c.get('noise_excess', 0.0)):.2f} grey levels")
-            spans.append((n, n, "; ".join(what) or "mismatched"))
-        prev = n
-    return spans
+    return _frame_spans(frames, "cameras", _describe_cameras)
 
 
 def _fmt(v: Any) -> str:
