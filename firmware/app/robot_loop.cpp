@@ -920,12 +920,11 @@ LoopResult RobotLoop::run() {
     mismatch_run = camera_mismatch ? mismatch_run + 1 : 0;
     if (mismatch_run == kMismatchWarnFrames && !mismatch_warned && !opt.quiet) {
       mismatch_warned = true;
+      const char* which = mr.gain_triggered ? (mr.noise_equalised ? "gain/tone and noise" : "gain/tone") : "noise";
       std::fprintf(stderr,
-                   "cameras: the last %d frames read as mismatched (%s%s%s): give both cameras the same fixed exposure "
-                   "and gain (fuzzyctl rectcheck)\n",
-                   kMismatchWarnFrames, mr.gain_triggered ? "gain/tone, grey-level shift " : "",
-                   mr.gain_triggered ? std::to_string(static_cast<int>(std::lround(mr.grey_quantile_shift))).c_str() : "",
-                   mr.noise_equalised ? (mr.gain_triggered ? "; noise" : "noise") : "");
+                   "cameras: the last %d frames read as mismatched (%s, grey-level shift %.0f, noise excess %.2f): give "
+                   "both cameras the same fixed exposure and gain (fuzzyctl rectcheck)\n",
+                   kMismatchWarnFrames, which, mr.grey_quantile_shift, mr.noise_excess);
     }
     if (opt.on_match) opt.on_match(gl, gr, mr);
     // ---- perception health (robot::PerceptionMonitor) ----
