@@ -180,6 +180,8 @@ MatcherParams to_params(const Values& v) {
   p.boundary.min_jump = i("boundary.min_jump");
   p.boundary.passes = i("boundary.passes");
   p.lr.max_diff = i("lr_check.max_diff");
+  p.lr.retry_candidates = i("lr_check.retry_candidates");
+  p.lr.retry_min_share = v.num("lr_check.retry_min_share");
   p.esr.enabled = v.flag("esr.enabled");
   p.esr.window = i("esr.window");
   p.esr.tau = v.num("esr.tau");
@@ -308,7 +310,9 @@ std::string config_to_toml(const MatcherParams& p) {
     << "\nmargin = " << fmt_num(p.boundary.margin) << (p.boundary.margin == std::floor(p.boundary.margin) ? ".0" : "")
     << "\nstep = " << p.boundary.step << "\nmin_jump = " << p.boundary.min_jump << "\npasses = " << p.boundary.passes
     << "\n\n"
-    << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\n\n"
+    << "[lr_check]\nmax_diff = " << p.lr.max_diff << "\nretry_candidates = " << p.lr.retry_candidates
+    << "\nretry_min_share = " << fmt_num(p.lr.retry_min_share)
+    << (p.lr.retry_min_share == std::floor(p.lr.retry_min_share) ? ".0" : "") << "\n\n"
     << "[esr]\nenabled = " << (p.esr.enabled ? "true" : "false") << "\nwindow = " << p.esr.window
     << "\ntau = " << fmt_num(p.esr.tau) << (p.esr.tau == std::floor(p.esr.tau) ? ".0" : "")
     << "\nkernel = \"" << (p.esr.kernel == EntropyKernel::kSliding ? "sliding" : p.esr.kernel == EntropyKernel::kAuto ? "auto" : "sorted")

@@ -162,6 +162,9 @@ MatchResult Matcher::match_with_labels(const ImageU8& left_in, const ImageU8& ri
   clock.lap(Stage::Wta);
 
   r.disp_lr = left_right_check(r.disp_left_wta, r.disp_right_wta, p.lr, &r.lr_mask);  // eq. (13)
+  if (p.lr.retry_candidates > 0)  // docs/algorithm.md 5b (not in the paper)
+    r.retry_recovered = retry_rejected_segments(r.disp_lr, &r.lr_mask, r.seg_left, cost_l, r.dec_left, r.disp_right_wta,
+                                                *lut_, p.cost, p.lr);
   clock.lap(Stage::LrCheck);
 
   if (p.esr.enabled) {                                                                  // eq. (14)-(15)

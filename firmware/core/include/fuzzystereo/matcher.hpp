@@ -38,6 +38,7 @@ struct MatchResult {
   bool noise_equalised = false;             // both images were smoothed (noise_excess > cost.noise_excess)
   bool gain_triggered = false;              // the gain trigger fired (the right gradients were scaled by the factor)
   bool boundary_refined = false;            // the [boundary] refinement ran (enabled, or on_mismatch and a mismatch)
+  int retry_recovered = 0;                  // segments recovered by the candidate retry after eq. (13) ([lr_check] retry_*)
   StageTimings timings;
 };
 

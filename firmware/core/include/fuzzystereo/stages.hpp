@@ -160,6 +160,16 @@ ImageI16 refine_boundaries(const ImageI16& disp, const Segmentation& seg, const 
 ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right, const LrParams& p,
                           ImageU8* mask);
 
+// Candidate retry after eq. (13) (not in the paper, docs/algorithm.md 5b; p.retry_candidates > 0). A left
+// segment whose winner kept no pixel (every pixel invalid in disp_lr) ranks its other cost candidates by FIS
+// score (ties: smaller d), skipping those within max_diff of the winner; for each of the first
+// p.retry_candidates the integer disparity d is checked against disp_right on every pixel of the segment
+// (eq. 13 with d_l = d), and the first consistent on >= p.retry_min_share of the pixels is written (d in Q4)
+// into disp_lr (and mask = 1) on its consistent pixels. Returns the segments recovered.
+int retry_rejected_segments(ImageI16& disp_lr, ImageU8* mask, const Segmentation& seg, const SegmentCosts& costs,
+                            const SegmentDecision& dec, const ImageI16& disp_right, const FisLut& fis,
+                            const CostParams& cp, const LrParams& p);
+
 // ---- esr/ -----------------------------------------------------------------------------------
 // eq. (14): Shannon entropy [bit] of the integer disparities in a w x w block around every pixel
 // (invalid pixels excluded), in Q16; sliding window updated incrementally with an n*log2(n) table.
