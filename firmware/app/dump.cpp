@@ -65,6 +65,7 @@ void write_match_dump(const std::string& dir, const std::string& left_name, cons
                          {"noise_equalised", r.noise_equalised},
                          {"gain_triggered", r.gain_triggered},
                          {"boundary_refined", r.boundary_refined}};
+  meta["lr_check"] = {{"retry_recovered", r.retry_recovered}};  // docs/algorithm.md 5b
   std::ofstream f(dir + "/meta.json");
   f << meta.dump(2) << "\n";
   if (!f) throw UserError("cannot write '" + dir + "/meta.json'");

@@ -294,6 +294,31 @@ def _random_map(h, w, seed, D=6, invalid=0.2):
     return d
 
 
+def test_retry_keeps_the_first_consistent_candidate_best_score_first():
+    # docs/algorithm.md 5b, the firmware test LrRetry.TriesTheOtherCandidatesBestFirst... in float: segment 1
+    # (10 x 4 px at x >= 20) lost its winner d = 5 on every pixel; d = 2 scores second and agrees with the right
+    # map on 3 of 10 columns, d = 9 scores third and agrees everywhere.
+    w, h = 40, 4
+    labels = np.zeros((h, w), dtype=np.int32)
+    labels[:, 20:30] = 1
+    right = np.full((h, w), np.nan)
+    right[:, 11:21] = 9.0
+    right[:, 25:28] = 2.0
+    lr = np.full((h, w), np.nan)
+    lr[0, 3] = 1.0  # segment 0 keeps a pixel: untouched
+    mask = ~np.isnan(lr)
+    winner = np.array([1, 5])
+    cand = np.array([[1, 2, 3], [2, 5, 9]])
+    scores = np.array([[0.9, 0.6, 0.3], [0.6, 0.9, 0.3]])
+    out, m, n = lrcheck.retry_rejected_segments(lr, mask, labels, winner, cand, scores, right, 1, 3, 0.7)
+    assert n == 1 and np.all(out[:, 20:30] == 9.0) and m[:, 20:30].all() and np.isnan(out[:, 30:]).all()
+    out, m, n = lrcheck.retry_rejected_segments(lr, mask, labels, winner, cand, scores, right, 1, 3, 0.2)
+    assert n == 1 and np.all(out[:, 27:30] == 2.0) and np.isnan(out[:, 20:27]).all() and int(m.sum()) == 13
+    assert lrcheck.retry_rejected_segments(lr, mask, labels, winner, cand, scores, right, 1, 1, 0.7)[2] == 0
+    same, m0, n0 = lrcheck.retry_rejected_segments(lr, mask, labels, winner, cand, scores, right, 1, 0, 0.7)
+    assert n0 == 0 and np.array_equal(np.isnan(same), np.isnan(lr)) and np.array_equal(m0, mask)
+
+
 def test_block_entropy_and_mean_brute_force():
     d = _random_map(11, 13, 4)
     w, r = 5, 2

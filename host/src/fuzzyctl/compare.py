@@ -31,7 +31,7 @@ from .fis import Fis, load_definition
 from .reference import STAGES, ReferenceResult, match
 from .reference.densify import densify_config
 from .reference.esr import entropy_selective_refinement
-from .reference.lrcheck import left_right_check
+from .reference.lrcheck import left_right_check, retry_rejected_segments
 from .reference.segmentation import label_agreement
 
 
@@ -155,7 +155,8 @@ _doc("lr_mask_agreement_pct", "lrcheck", "%", "pixels with the same eq. (13) ver
 _doc("esr_replaced_agreement_pct", "esr", "%", "pixels with the same eq. (15) replaced flag")
 _doc("boundary_decision_agreement_pct", "wta", "%", "100 when the firmware (meta.json radiometric.boundary_refined) and the reference both ran the [boundary] refinement or both did not (enabled, or on_mismatch on a mismatched pair; docs/algorithm.md 4b), 0 otherwise; empty for dumps that predate the field")
 _doc("wta_paint_isolated_pct", "wta", "%", "firmware WTA maps equal its segment table painted on its labels (both sides; with [boundary], refined by the reference on the same images)")
-_doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask")
+_doc("lr_mask_isolated_agreement_pct", "lrcheck", "%", "reference eq. (13) on the firmware's WTA maps vs the firmware's mask (with the candidate retry on: outside the segments eq. (13) rejects whole)")
+_doc("lr_retry_isolated_agreement_pct", "lrcheck", "%", "the candidate retry (docs/algorithm.md 5b) on the firmware's WTA maps and segment winners, with the reference's candidates and FIS scores, vs the firmware's mask, over the segments eq. (13) rejects whole; empty when the retry is off")
 _doc("esr_replaced_isolated_agreement_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's replaced mask")
 _doc("final_isolated_within_0px_pct", "esr", "%", "reference ESR on the firmware's LR/right maps vs the firmware's ESR map disp_esr (Q4)")
 _doc("densify_isolated_within_1px_pct", "densify", "%", "reference densify on the firmware's ESR map vs the firmware's final map")
@@ -252,8 +253,23 @@ def compute_metrics(d: dumpmod.Dump, r: ReferenceResult, cfg: Config) -> list[Me
         painted = [dumpmod.disp_to_q4(m) == d[f"disp_{side}_wta"] for m, side in zip(refined, ("left", "right"))]
     values["wta_paint_isolated_pct"] = 100.0 * float(np.mean(np.concatenate([p.ravel() for p in painted])))
     fw_wta_l, fw_wta_r, fw_lr = d.disp("disp_left_wta"), d.disp("disp_right_wta"), d.disp("disp_lr")
-    _, iso_mask = left_right_check(fw_wta_l, fw_wta_r, cfg.lr_check.max_diff)
-    values["lr_mask_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_mask == (d["lr_mask"] != 0)))
+    iso_lr, iso_mask = left_right_check(fw_wta_l, fw_wta_r, cfg.lr_check.max_diff)
+    fw_mask = d["lr_mask"] != 0
+    values["lr_retry_isolated_agreement_pct"] = None
+    if cfg.lr_check.retry_candidates > 0:  # docs/algorithm.md 5b: the retry only touches wholly rejected segments
+        lab = d["labels_left"]
+        kept = np.zeros(int(lab.max()) + 1, dtype=bool)
+        kept[np.unique(lab[iso_mask])] = True
+        whole = ~kept[lab]
+        values["lr_mask_isolated_agreement_pct"] = 100.0 * float(np.mean((iso_mask == fw_mask)[~whole])) if (~whole).any() else 100.0
+        if r.labels_given and r.dec_left.candidate_scores is not None and whole.any():
+            winner = d["seg_left"][:, dumpmod.SEG_DISP].astype(np.int64)
+            _, retry_mask, _ = retry_rejected_segments(iso_lr, iso_mask, lab, winner, r.dec_left.candidates,
+                                                       r.dec_left.candidate_scores, fw_wta_r, cfg.lr_check.max_diff,
+                                                       cfg.lr_check.retry_candidates, cfg.lr_check.retry_min_share)
+            values["lr_retry_isolated_agreement_pct"] = 100.0 * float(np.mean((retry_mask == fw_mask)[whole]))
+    else:
+        values["lr_mask_isolated_agreement_pct"] = 100.0 * float(np.mean(iso_mask == fw_mask))
     if cfg.esr.enabled:
         iso_final, iso_rep, _ = entropy_selective_refinement(fw_lr, fw_wta_r, cfg.esr.window, cfg.esr.tau, cfg.cost.max_disparity)
     else:

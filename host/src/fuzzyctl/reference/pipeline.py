@@ -42,6 +42,7 @@ class ReferenceResult:
     labels_given: bool = False
     fis_check_error: float = 0.0  # max |fast engine - ControlSystemSimulation| on sampled winners
     boundary_refined: bool = False  # the [boundary] refinement ran (enabled, or on_mismatch on a mismatched pair)
+    retry_recovered: int = 0  # segments recovered by the candidate retry after eq. (13) (docs/algorithm.md 5b)
 
 
 class _Clock:
@@ -120,6 +121,11 @@ def match(
     clock.lap("wta")
 
     disp_lr, mask = lrcheck.left_right_check(disp_l, disp_r, lr.max_diff)  # eq. (13)
+    retry_recovered = 0
+    if lr.retry_candidates > 0:  # not in the paper: docs/algorithm.md 5b
+        disp_lr, mask, retry_recovered = lrcheck.retry_rejected_segments(
+            disp_lr, mask, lab_l, dec_l.disparity, dec_l.candidates, dec_l.candidate_scores, disp_r, lr.max_diff,
+            lr.retry_candidates, lr.retry_min_share)
     clock.lap("lrcheck")
 
     if e.enabled:  # eq. (14)-(15)
@@ -137,7 +143,7 @@ def match(
         disp_left_wta=disp_l, disp_right_wta=disp_r, lr_mask=mask, disp_lr=disp_lr,
         disp_esr=disp_esr, disp_final=final, densify_changed=changed, esr_replaced=replaced, esr_maps=maps, timings_ms=clock.ms,
         labels_given=labels_left is not None and labels_right is not None, fis_check_error=fis_check,
-        boundary_refined=refine,
+        boundary_refined=refine, retry_recovered=retry_recovered,
     )  # fmt: skip
 
 

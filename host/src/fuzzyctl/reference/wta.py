@@ -46,6 +46,7 @@ class SegmentDecision:
     dc1: np.ndarray  # (n,) the winner's inputs
     dc2: np.ndarray
     candidates: np.ndarray  # (n, K) disparities that took part in the WTA
+    candidate_scores: np.ndarray | None = None  # (n, K) their FIS scores (the candidate retry, docs/algorithm.md 5b)
 
 
 def fis_scores(fis: Fis, dc1: np.ndarray, dc2: np.ndarray, engine: str = "fast", check_samples: int = 0) -> np.ndarray:
@@ -144,6 +145,7 @@ def fis_winner_take_all(
         dc1=dc1[r, best],
         dc2=dc2[r, best],
         candidates=cand,
+        candidate_scores=score,
     )
 
 
