@@ -37,7 +37,9 @@ ImageI16 left_right_check(const ImageI16& disp_left, const ImageI16& disp_right,
   return out;
 }
 
-// docs/algorithm.md 5b. Segments are independent (each writes only its own pixels).
+// docs/algorithm.md 5b. Segments are independent (each writes only its own pixels). Per candidate one pass over
+// the segment's pixels records which are consistent (a per-thread flag buffer) and stops as soon as the rest
+// can no longer reach the share; the flagged pixels are painted only when it does.
 int retry_rejected_segments(ImageI16& disp_lr, ImageU8* mask, const Segmentation& seg, const SegmentCosts& costs,
                             const SegmentDecision& dec, const ImageI16& disp_right, const FisLut& fis,
                             const CostParams& cp, const LrParams& p) {
@@ -50,53 +52,65 @@ int retry_rejected_segments(ImageI16& disp_lr, ImageU8* mask, const Segmentation
   const int tol = p.max_diff * kDispScale;
   int recovered = 0;
 #if defined(FS_HAVE_OPENMP)
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : recovered)
+#pragma omp parallel reduction(+ : recovered)
 #endif
-  for (std::size_t s = 0; s < n; ++s) {
-    const int d_win = dec.disparity[s];
-    if (d_win == kInvalidDisp) continue;
-    const Run* r0 = seg.runs.data() + seg.run_begin[s];
-    const Run* r1 = seg.runs.data() + seg.run_begin[s + 1];
-    bool kept = false;
-    for (const Run* r = r0; r != r1 && !kept; ++r) {
-      const std::int16_t* o = disp_lr.row(r->y);
-      for (int x = r->x0; x < r->x1; ++x)
-        if (o[x] != kInvalidDisp) { kept = true; break; }
-    }
-    if (kept) continue;
-    // The other candidates, best FIS score first (ties: smaller d; the records are in ascending d).
-    const CostCandidate* rec = costs.candidates.data() + s * std::size_t(K);
-    std::vector<std::pair<std::int64_t, int>> order;  // (-score, d)
-    order.reserve(std::size_t(K));
-    for (int k = 0; k < K; ++k) {
-      if (std::abs(rec[k].d - d_win) <= p.max_diff) continue;
-      order.emplace_back(-std::int64_t(fis.lookup(rec[k].ncc, data_cost2_q16(rec[k].nmi, rec[k].igsad, alpha_q16))), rec[k].d);
-    }
-    std::sort(order.begin(), order.end());
-    const int tries = std::min<int>(p.retry_candidates, int(order.size()));
-    const auto need = static_cast<std::int64_t>(std::ceil(p.retry_min_share * seg.pixels[s]));
-    for (int t = 0; t < tries; ++t) {
-      const int dq = order[std::size_t(t)].second * kDispScale;
-      auto consistent = [&](const Run& r, int x) {
-        const int xr = partner_x(x, static_cast<std::int16_t>(dq));
-        if (xr < 0) return false;
-        const std::int16_t v = disp_right.row(r.y)[xr];
-        return v != kInvalidDisp && std::abs(dq - v) <= tol;
-      };
-      std::int64_t ok = 0;
-      for (const Run* r = r0; r != r1; ++r)
-        for (int x = r->x0; x < r->x1; ++x) ok += consistent(*r, x) ? 1 : 0;
-      if (ok == 0 || ok < need) continue;
-      for (const Run* r = r0; r != r1; ++r) {
-        std::int16_t* o = disp_lr.row(r->y);
+  {
+    std::vector<std::pair<std::int64_t, int>> order;  // (-score, d): best score first, ties to the smaller d
+    std::vector<std::uint8_t> ok;                      // consistency of the segment's pixels, in run order
+#if defined(FS_HAVE_OPENMP)
+#pragma omp for schedule(dynamic, 64)
+#endif
+    for (std::size_t s = 0; s < n; ++s) {
+      const int d_win = dec.disparity[s];
+      if (d_win == kInvalidDisp) continue;
+      const Run* r0 = seg.runs.data() + seg.run_begin[s];
+      const Run* r1 = seg.runs.data() + seg.run_begin[s + 1];
+      bool kept = false;
+      for (const Run* r = r0; r != r1 && !kept; ++r) {
+        const std::int16_t* o = disp_lr.row(r->y);
         for (int x = r->x0; x < r->x1; ++x)
-          if (consistent(*r, x)) {
-            o[x] = static_cast<std::int16_t>(dq);
-            if (mask) mask->at(x, r->y) = 1;
-          }
+          if (o[x] != kInvalidDisp) { kept = true; break; }
       }
-      ++recovered;
-      break;
+      if (kept) continue;
+      const CostCandidate* rec = costs.candidates.data() + s * std::size_t(K);
+      order.clear();
+      for (int k = 0; k < K; ++k) {
+        if (std::abs(rec[k].d - d_win) <= p.max_diff) continue;
+        order.emplace_back(-std::int64_t(fis.lookup(rec[k].ncc, data_cost2_q16(rec[k].nmi, rec[k].igsad, alpha_q16))), rec[k].d);
+      }
+      std::sort(order.begin(), order.end());
+      const int tries = std::min<int>(p.retry_candidates, int(order.size()));
+      const std::int64_t npix = seg.pixels[s];
+      const std::int64_t need = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(p.retry_min_share * double(npix))));
+      ok.resize(std::size_t(npix));
+      for (int t = 0; t < tries; ++t) {
+        const int d = order[std::size_t(t)].second, dq = d * kDispScale;
+        std::int64_t good = 0, seen = 0;
+        bool hopeless = false;
+        for (const Run* r = r0; r != r1 && !hopeless; ++r) {
+          const std::int16_t* rr = disp_right.row(r->y);
+          for (int x = r->x0; x < r->x1; ++x) {
+            const int xr = x - d;  // partner_x of an integer disparity
+            const std::int16_t v = xr >= 0 ? rr[xr] : kInvalidDisp;
+            const bool c = v != kInvalidDisp && std::abs(dq - v) <= tol;
+            ok[std::size_t(seen++)] = c;
+            good += c;
+          }
+          hopeless = good + (npix - seen) < need;
+        }
+        if (hopeless || good < need) continue;
+        std::size_t i = 0;
+        for (const Run* r = r0; r != r1; ++r) {
+          std::int16_t* o = disp_lr.row(r->y);
+          for (int x = r->x0; x < r->x1; ++x, ++i)
+            if (ok[i]) {
+              o[x] = static_cast<std::int16_t>(dq);
+              if (mask) mask->at(x, r->y) = 1;
+            }
+        }
+        ++recovered;
+        break;
+      }
     }
   }
   return recovered;
