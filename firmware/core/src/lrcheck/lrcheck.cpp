@@ -88,14 +88,23 @@ int retry_rejected_segments(ImageI16& disp_lr, ImageU8* mask, const Segmentation
         std::int64_t good = 0, seen = 0;
         bool hopeless = false;
         for (const Run* r = r0; r != r1 && !hopeless; ++r) {
-          const std::int16_t* rr = disp_right.row(r->y);
-          for (int x = r->x0; x < r->x1; ++x) {
-            const int xr = x - d;  // partner_x of an integer disparity
-            const std::int16_t v = xr >= 0 ? rr[xr] : kInvalidDisp;
-            const bool c = v != kInvalidDisp && std::abs(dq - v) <= tol;
-            ok[std::size_t(seen++)] = c;
-            good += c;
+          // Partners x - d (partner_x of an integer disparity): none left of the image (x < d), then one
+          // contiguous stretch of the right row, checked branch-free (vectorised).
+          const int xa = std::min(r->x1, std::max(r->x0, d));
+          std::uint8_t* okr = ok.data() + seen;
+          std::fill(okr, okr + (xa - r->x0), std::uint8_t(0));
+          okr += xa - r->x0;
+          const std::int16_t* __restrict rr = disp_right.row(r->y) + (xa - d);
+          const int m = r->x1 - xa;
+          int g = 0;
+          for (int i = 0; i < m; ++i) {
+            const int v = rr[i];
+            const std::uint8_t c = (v != kInvalidDisp) & (dq - v <= tol) & (v - dq <= tol);
+            okr[i] = c;
+            g += c;
           }
+          good += g;
+          seen += r->x1 - r->x0;
           hopeless = good + (npix - seen) < need;
         }
         if (hopeless || good < need) continue;
