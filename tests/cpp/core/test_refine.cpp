@@ -311,6 +311,7 @@ TEST(LrRetry, TriesTheOtherCandidatesBestFirstAndKeepsTheFirstConsistentOne) {
     EXPECT_EQ(retry_rejected_segments(one, nullptr, seg, c, dec, right, lut, cp, p), share < 0.3 ? 1 : 0);
   }
   LrParams off;
+  off.retry_candidates = 0;
   ImageI16 same = lr;
   EXPECT_EQ(retry_rejected_segments(same, nullptr, seg, c, dec, right, lut, cp, off), 0);
   EXPECT_EQ(same.data, lr.data);

@@ -67,9 +67,10 @@ struct LrParams {
   int max_diff = 1;  // eq. (13) [px]
   // Candidate retry (not in the paper, docs/algorithm.md 5b): a left segment with no pixel passing eq. (13)
   // tries up to retry_candidates of its other cost candidates (0 = off), best FIS score first; the first one
-  // consistent on at least retry_min_share of the segment's pixels is kept on those pixels.
-  int retry_candidates = 0;
-  double retry_min_share = 0.5;
+  // consistent on at least retry_min_share of the segment's pixels is kept on those pixels. Default since
+  // session 56 (a pre-registered rule); 0 turns it off.
+  int retry_candidates = 3;
+  double retry_min_share = 0.7;
 };
 
 // The block-entropy kernel of eq. (14) (block_entropy, esr/; docs/algorithm.md 6): both give the same
