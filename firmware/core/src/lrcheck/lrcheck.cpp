@@ -2,9 +2,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <vector>
-
 #include <stdexcept>
+#include <vector>
 
 #include "fuzzystereo/stages.hpp"
 
@@ -94,8 +93,8 @@ int retry_rejected_segments(ImageI16& disp_lr, ImageU8* mask, const Segmentation
           std::uint8_t* okr = ok.data() + seen;
           std::fill(okr, okr + (xa - r->x0), std::uint8_t(0));
           okr += xa - r->x0;
-          const std::int16_t* __restrict rr = disp_right.row(r->y) + (xa - d);
           const int m = r->x1 - xa;
+          const std::int16_t* __restrict rr = disp_right.row(r->y) + (m > 0 ? xa - d : 0);  // xa >= d when m > 0
           int g = 0;
           for (int i = 0; i < m; ++i) {
             const int v = rr[i];
