@@ -34,18 +34,13 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host" / "src"))
 
 from fuzzyctl import dataset, metrics  # noqa: E402
+from fuzzyctl.dump import q4_to_disp  # noqa: E402
 from fuzzyctl.reference import densify as rd  # noqa: E402
 
 WINDOW = 80
 SMOOTH = (6, 6, 8.0, 3.0, 0.1)  # [densify] smooth_* defaults
 VARIANTS = [("none", 0, 0.0), ("line", 0, 0.0), ("line", 0, 0.2)] + [
     (kind, t, ms) for kind, t in (("edge", 8), ("edge", 15), ("ref", 30), ("ref", 45)) for ms in (0.0, 0.1, 0.2)]
-
-
-def q4_to_float(q4: np.ndarray) -> np.ndarray:
-    x = q4.astype(np.float64) / 16.0
-    x[q4 < 0] = np.nan
-    return x
 
 
 def before_band(esr: np.ndarray, right_wta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -57,37 +52,23 @@ def before_band(esr: np.ndarray, right_wta: np.ndarray) -> tuple[np.ndarray, np.
     return d, out
 
 
-def row_line(before: np.ndarray, y: int, cap: float, min_slope: float) -> tuple[int, np.ndarray] | None:
-    valid = ~np.isnan(before[y])
-    if not valid.any() or valid[0]:
-        return None
-    x0 = int(np.argmax(valid))
-    xs = np.nonzero(valid[x0:x0 + WINDOW])[0] + x0
-    if len(xs) < max(3, WINDOW // 4):
-        return None
-    ds = before[y, xs]
-    xm, dm = xs.mean(), ds.mean()
-    sxx, sxd = float(((xs - xm) ** 2).sum()), float(((xs - xm) * (ds - dm)).sum())
-    if sxx <= 0 or sxd >= 0 or -sxd < min_slope * sxx:
-        return None
-    return x0, np.minimum(dm + sxd / sxx * (np.arange(x0) - xm), cap)
-
-
 def band_variant(before: np.ndarray, filled: np.ndarray, grey: np.ndarray, cap: float, kind: str, t: float,
                  min_slope: float) -> np.ndarray:
-    out = filled.copy()
+    """The band filled per ``kind``; the line is the twin's own ``extrapolate_left_border`` (session 45's option)."""
     if kind == "none":
-        return out
+        return filled.copy()
+    line = filled.copy()
+    rd.extrapolate_left_border(line, before, WINDOW, cap, min_slope)
+    if kind == "line":
+        return line
+    out = filled.copy()
     blurred = cv2.blur(grey, (5, 1)).astype(np.float64)
     g = grey.astype(np.float64)
+    valid = ~np.isnan(before)
     for y in range(before.shape[0]):
-        r = row_line(before, y, cap, min_slope)
-        if r is None:
-            continue
-        x0, v = r
-        if kind == "line":
-            out[y, :x0] = v
-            continue
+        if not valid[y].any() or valid[y, 0] or np.array_equal(line[y], filled[y], equal_nan=True):
+            continue  # no band, or the line was not drawn on this row
+        x0 = int(np.argmax(valid[y]))
         if kind == "edge":
             stop = np.abs(np.diff(blurred[y, :x0 + 1])) > t  # stop[x]: an edge between x and x + 1
         else:
@@ -95,14 +76,14 @@ def band_variant(before: np.ndarray, filled: np.ndarray, grey: np.ndarray, cap: 
         hits = np.nonzero(stop[::-1])[0]
         k = x0 if len(hits) == 0 else int(hits[0])  # columns x0 - k .. x0 - 1 take the line
         if k > 0:
-            out[y, x0 - k:x0] = v[x0 - k:x0]
+            out[y, x0 - k:x0] = line[y, x0 - k:x0]
     return out
 
 
 def score(frame: dataset.Frame, dump_dir: Path) -> tuple[str, str, dict]:
     dd = dump_dir / "dump"
-    esr = q4_to_float(np.load(dd / "disp_esr.npy"))
-    right = q4_to_float(np.load(dd / "disp_right_wta.npy"))
+    esr = q4_to_disp(np.load(dd / "disp_esr.npy"))
+    right = q4_to_disp(np.load(dd / "disp_right_wta.npy"))
     grey = cv2.imread(str(dd / "left.png"), cv2.IMREAD_GRAYSCALE)
     gt = dataset.load_ground_truth(frame)
     before, filled = before_band(esr, right)

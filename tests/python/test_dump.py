@@ -53,6 +53,7 @@ def test_round_trip(ref_dump):
     for name, (dtype, _) in dm.ARRAYS.items():
         assert d[name].dtype == dtype
     assert set(d.meta["timings_ms"]) == {"gradient", "segmentation", "cost", "wta", "lrcheck", "esr", "densify"}
+    assert d.meta["lr_check"]["retry_recovered"] == r.retry_recovered  # as the firmware's dump (docs/formats.md)
 
 
 def _copy(src, dst):

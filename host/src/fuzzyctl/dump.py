@@ -252,5 +252,6 @@ def write_dump(out_dir: str | Path, result, meta_extra: dict[str, Any]) -> Path:
     meta["timings_ms"] = {k: round(v, 3) for k, v in result.timings_ms.items()}
     # the one radiometric decision the comparison checks (docs/formats.md; the firmware records more)
     meta.setdefault("radiometric", {})["boundary_refined"] = bool(getattr(result, "boundary_refined", False))
+    meta.setdefault("lr_check", {})["retry_recovered"] = int(getattr(result, "retry_recovered", 0))  # docs/algorithm.md 5b
     (d / "meta.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return d
